@@ -1,0 +1,25 @@
+# Two commands on a fresh machine:  make run   (main job on bundled data)   make test
+PY := $(shell scripts/find-python.sh)
+VENV := .venv
+BIN := $(VENV)/bin
+OUT ?= out
+
+.PHONY: run test bench clean
+$(BIN)/.installed: pyproject.toml
+	@test -n "$(PY)" || { echo "no Python >= 3.12 found (see scripts/find-python.sh)"; exit 1; }
+	$(PY) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $@
+
+run: $(BIN)/.installed
+	$(BIN)/python scripts/main_job.py -o $(OUT)
+
+test: $(BIN)/.installed
+	$(BIN)/python -m pytest -q
+
+bench: $(BIN)/.installed
+	$(BIN)/python benchmarks/bench_hysteresis_scan.py
+
+clean:
+	rm -rf $(VENV) $(OUT)

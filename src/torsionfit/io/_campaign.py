@@ -1,0 +1,99 @@
+"""In-memory campaign: one reducer, its bench, and its runs, all in SI units."""
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Reducer:
+    name: str
+    rated_torque_Nm: float
+    ratio: float | None = None
+    max_speed_rpm: float | None = None
+
+
+@dataclass(frozen=True)
+class Instrument:
+    """Bench sensors; every field optional (None = unknown)."""
+
+    torque_full_scale_Nm: float | None = None
+    torque_accuracy_pct_fs: float | None = None
+    encoder_resolution_arcsec: float | None = None
+    sample_rate_Hz: float | None = None
+
+    @property
+    def torque_sd_Nm(self) -> float | None:
+        """Torque noise standard deviation implied by accuracy × full scale (N·m)."""
+        if self.torque_full_scale_Nm is None or self.torque_accuracy_pct_fs is None:
+            return None
+        return self.torque_full_scale_Nm * self.torque_accuracy_pct_fs / 100.0
+
+    @property
+    def angle_floor_rad(self) -> float | None:
+        """Quantisation noise floor of the encoder, resolution/√12 (rad)."""
+        if self.encoder_resolution_arcsec is None:
+            return None
+        return float(np.deg2rad(self.encoder_resolution_arcsec / 3600.0) / np.sqrt(12.0))
+
+
+@dataclass(frozen=True, eq=False)
+class HysteresisRun:
+    """Input locked, output loaded. Arrays are 1-D, same length, time non-decreasing."""
+
+    name: str
+    time_s: np.ndarray
+    torque_Nm: np.ndarray
+    angle_rad: np.ndarray
+    loading_rate_Nm_per_s: float | None = None
+    temperature_C: np.ndarray | None = None
+    source: str = ""
+    #: nominal peak load of the ramps (N·m); None = the reducer's rated torque
+    peak_torque_Nm: float | None = None
+    kind: str = field(default="hysteresis", init=False)
+
+    def __len__(self) -> int:
+        return len(self.time_s)
+
+
+@dataclass(frozen=True, eq=False)
+class TransmissionErrorRun:
+    """Rotating under constant load. ``te_rad`` = θ_out − θ_in/R, output-referred."""
+
+    name: str
+    output_angle_rad: np.ndarray
+    te_rad: np.ndarray
+    torque_Nm: float  # nominal load, ≥ 0 (its sign is carried by ``direction``)
+    speed_rpm: float  # output speed, ≥ 0
+    direction: int  # +1 forward, −1 backward
+    time_s: np.ndarray | None = None
+    torque_series_Nm: np.ndarray | None = None
+    temperature_C: np.ndarray | None = None
+    source: str = ""
+    kind: str = field(default="transmission_error", init=False)
+
+    def __len__(self) -> int:
+        return len(self.output_angle_rad)
+
+
+Run = HysteresisRun | TransmissionErrorRun
+
+
+@dataclass(frozen=True, eq=False)
+class Campaign:
+    """One unit: reducer, instrument and runs. ``path`` is the manifest it came from."""
+
+    reducer: Reducer
+    instrument: Instrument
+    runs: tuple[Run, ...]
+    path: Path | None = None
+    notes: str = ""
+
+    @property
+    def hysteresis_runs(self) -> tuple[HysteresisRun, ...]:
+        return tuple(r for r in self.runs if isinstance(r, HysteresisRun))
+
+    @property
+    def te_runs(self) -> tuple[TransmissionErrorRun, ...]:
+        return tuple(r for r in self.runs if isinstance(r, TransmissionErrorRun))

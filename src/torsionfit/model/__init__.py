@@ -1,0 +1,28 @@
+"""The differentiable forward model (DESIGN §1): small equinox modules, pure functions of
+(parameters, data). Parameters are a dict of SI values keyed by ``Parameter.name``."""
+
+from ._backlash import (
+    AbstractBacklash as AbstractBacklash,
+    NoBacklash as NoBacklash,
+    SmoothBacklash as SmoothBacklash,
+)
+from ._campaign_model import COMPONENTS as COMPONENTS, CampaignModel as CampaignModel
+from ._compliance import (
+    AbstractCompliance as AbstractCompliance,
+    AsymmetricCompliance as AsymmetricCompliance,
+    LinearCompliance as LinearCompliance,
+    PowerLawCompliance as PowerLawCompliance,
+    ThreeSegmentCompliance as ThreeSegmentCompliance,
+)
+from ._creep import Creep as Creep
+from ._friction import AbstractFriction as AbstractFriction, DahlFriction as DahlFriction
+from ._inputs import (
+    HysteresisInput as HysteresisInput,
+    TEInput as TEInput,
+    hysteresis_input as hysteresis_input,
+    te_input as te_input,
+)
+from ._kinematic import KinematicHarmonics as KinematicHarmonics
+from ._parameter import Parameter as Parameter
+from ._recurrence import affine_scan as affine_scan, resolve_scan_method as resolve_scan_method
+from ._speed import SpeedDependence as SpeedDependence

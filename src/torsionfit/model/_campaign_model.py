@@ -1,0 +1,167 @@
+"""One model for a whole campaign: shared physics, per-run offsets (DESIGN §1.1–1.3).
+
+Components, every one returned separately and summing to the total:
+
+- ``elastic``   C(τ): the spring's twist at the applied torque (single-valued in τ);
+- ``friction``  [C + θ_g](τ_m) − [C + θ_g](τ): what friction changes (the hysteresis);
+- ``geometric`` θ_g(τ): lost motion of the mesh at the applied torque;
+- ``creep``     θ_c: the rate-dependent part (off in the base model);
+- ``kinematic`` θ_kin(φ): kinematic error (TE runs only);
+- ``drift``     slow per-run drift (off in the base model);
+- ``offset``    θ_0 per hysteresis run, TE_0 shared by all TE runs.
+
+This split is the paper's Eq. (3): θ_out = θ_e(τ) + θ_f(τ, τ̇) + θ_g(τ) (+ θ_in/R).
+"""
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from ._backlash import AbstractBacklash, SmoothBacklash
+from ._compliance import AbstractCompliance, LinearCompliance
+from ._creep import Creep
+from ._friction import AbstractFriction, DahlFriction
+from ._inputs import HysteresisInput, TEInput
+from ._kinematic import KinematicHarmonics
+from ._parameter import Parameter
+from ._recurrence import ScanMethod
+from ._speed import SpeedDependence
+
+COMPONENTS = ("elastic", "friction", "geometric", "creep", "kinematic", "drift", "offset")
+
+
+class CampaignModel(eqx.Module):
+    """Forward model of a campaign with ``run_kinds`` (in campaign order).
+
+    The base model is linear compliance + Dahl friction + smooth backlash + offsets; every
+    other part is ``None``/``False`` until switched on (by hand or by the effects catalog).
+    """
+
+    run_kinds: tuple[str, ...] = eqx.field(static=True)
+    compliance: AbstractCompliance = LinearCompliance()
+    friction: AbstractFriction = DahlFriction()
+    backlash: AbstractBacklash = SmoothBacklash()
+    creep: Creep | None = None
+    kinematic: KinematicHarmonics | None = None
+    speed: SpeedDependence | None = None
+    drift: bool = eqx.field(static=True, default=False)
+    torque_offset: bool = eqx.field(static=True, default=False)
+    scan: ScanMethod = eqx.field(static=True, default="auto")
+
+    def __check_init__(self):
+        bad = [k for k in self.run_kinds if k not in ("hysteresis", "transmission_error")]
+        if bad:
+            raise ValueError(f"unknown run kind {bad[0]!r}")
+
+    @property
+    def n_hysteresis(self) -> int:
+        return sum(k == "hysteresis" for k in self.run_kinds)
+
+    @property
+    def n_te(self) -> int:
+        return sum(k == "transmission_error" for k in self.run_kinds)
+
+    def parameters(self) -> tuple[Parameter, ...]:
+        """Every parameter of this model, physics first, then the linear per-run ones."""
+        out = self.compliance.parameters() + self.friction.parameters() + self.backlash.parameters()
+        if self.creep is not None:
+            out += self.creep.parameters()
+        if self.speed is not None and self.n_te:
+            out += self.speed.parameters()
+        if self.torque_offset:
+            out += (Parameter("torque_offset", "real", "N·m", "torque-sensor offset"),)
+        if self.n_hysteresis:
+            out += (
+                Parameter("angle_offset", "real", "rad", "θ_0 per hysteresis run", self.n_hysteresis, True),
+            )
+        if self.n_te:
+            out += (Parameter("te_offset", "real", "rad", "TE_0 shared by all TE runs", 1, True),)
+            if self.kinematic is not None:
+                out += self.kinematic.parameters()
+        if self.drift:
+            out += (Parameter("drift", "real", "rad/s", "linear drift per run", len(self.run_kinds), True),)
+        return out
+
+    # --- one run -------------------------------------------------------------------------
+    def hysteresis_components(self, params, data: HysteresisInput, run_index: int, hyst_index: int):
+        """Components (rad) of one hysteresis run, plus ``total``, ``mesh_torque`` and ``friction_state``."""
+        torque = data.torque_Nm
+        if self.torque_offset:
+            torque = torque - params["torque_offset"]
+        friction_torque = self.friction.friction_torque(params, torque, self.scan)
+        mesh = torque - friction_torque
+
+        def spring_and_gap(t):
+            return self.compliance(params, t) + self.backlash(params, t)
+
+        elastic = self.compliance(params, torque)
+        geometric = self.backlash(params, torque)
+        friction = spring_and_gap(mesh) - elastic - geometric
+        zeros = jnp.zeros_like(torque)
+        creep = zeros if self.creep is None else self.creep.twist(params, data.time_s, mesh, self.scan)
+        drift = zeros
+        if self.drift:
+            drift = jnp.atleast_1d(params["drift"])[run_index] * (data.time_s - data.time_s[0])
+        offset = zeros + jnp.atleast_1d(params["angle_offset"])[hyst_index]
+        return self._finish(
+            dict(elastic=elastic, friction=friction, geometric=geometric, creep=creep,
+                 kinematic=zeros, drift=drift, offset=offset),
+            mesh_torque=mesh,
+            friction_state=friction_torque / params["friction_torque"],
+        )
+
+    def te_components(self, params, data: TEInput, run_index: int):
+        """Components (rad) of one TE run over its output angles, plus ``total`` and ``mesh_torque``."""
+        phi = data.output_angle_rad
+        ones = jnp.ones_like(phi)
+        load = data.direction * jnp.abs(data.torque_Nm) * ones
+        if self.torque_offset:
+            # the sensor reads the load + offset: the true load magnitude is reduced by it
+            load = data.direction * jnp.abs(data.torque_Nm - params["torque_offset"]) * ones
+        friction_level = params["friction_torque"]
+        factor = 1.0
+        if self.speed is not None:
+            friction_level = self.speed.friction_torque(params, friction_level, data.speed_rad_s)
+            factor = self.speed.compliance_factor(params, data.speed_rad_s)
+        mesh = load + data.direction * friction_level
+
+        def spring(t):
+            return factor * self.compliance(params, t)
+
+        elastic = spring(load)
+        geometric = self.backlash(params, load)
+        friction = spring(mesh) + self.backlash(params, mesh) - elastic - geometric
+        zeros = jnp.zeros_like(phi)
+        creep = zeros if self.creep is None else self.creep.steady_twist(params, mesh)
+        kinematic = zeros if self.kinematic is None else self.kinematic(params, phi)
+        drift = zeros
+        if self.drift:
+            drift = jnp.atleast_1d(params["drift"])[run_index] * (data.time_s - data.time_s[0])
+        offset = zeros + jnp.atleast_1d(params["te_offset"])[0]
+        return self._finish(
+            dict(elastic=elastic, friction=friction, geometric=geometric, creep=creep,
+                 kinematic=kinematic, drift=drift, offset=offset),
+            mesh_torque=mesh,
+        )
+
+    @staticmethod
+    def _finish(parts, **extra):
+        total = sum(parts[k] for k in COMPONENTS)
+        return {**parts, "total": total, **extra}
+
+    # --- the campaign --------------------------------------------------------------------
+    def components(self, params, inputs) -> list[dict]:
+        """Components of every run; ``inputs`` in campaign order (HysteresisInput / TEInput)."""
+        if len(inputs) != len(self.run_kinds):
+            raise ValueError(f"model has {len(self.run_kinds)} runs, got {len(inputs)} inputs")
+        out, h = [], 0
+        for i, (kind, data) in enumerate(zip(self.run_kinds, inputs)):
+            if kind == "hysteresis":
+                out.append(self.hysteresis_components(params, data, i, h))
+                h += 1
+            else:
+                out.append(self.te_components(params, data, i))
+        return out
+
+    def predict(self, params, inputs) -> list:
+        """Predicted measured angle (rad) per run: output twist or TE."""
+        return [c["total"] for c in self.components(params, inputs)]

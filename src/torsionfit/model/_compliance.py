@@ -1,0 +1,103 @@
+"""Elastic compliance curves θ_e = C(τ_m): mesh torque (N·m) → twist (rad)."""
+
+import abc
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from ._parameter import Parameter
+
+
+class AbstractCompliance(eqx.Module):
+    """An odd, increasing map from mesh torque to elastic twist."""
+
+    @abc.abstractmethod
+    def parameters(self) -> tuple[Parameter, ...]: ...
+
+    @abc.abstractmethod
+    def __call__(self, params, torque_Nm): ...
+
+
+class LinearCompliance(AbstractCompliance):
+    """``θ = τ / K``."""
+
+    def parameters(self):
+        return (Parameter("stiffness", "positive", "N·m/rad", "elastic stiffness K"),)
+
+    def __call__(self, params, torque_Nm):
+        return torque_Nm / params["stiffness"]
+
+
+def _smooth_ramp(x, width):
+    """``width·softplus(x/width)``: max(x, 0) with a knee of about ``width``."""
+    return width * jax.nn.softplus(x / width)
+
+
+class ThreeSegmentCompliance(AbstractCompliance):
+    """Catalog curve: stiffness K1 below T1, K2 from T1 to T2, K3 above; smooth knees.
+
+    Odd in τ. Each knee is a softplus blend ``knee_fraction·T_i`` wide.
+    """
+
+    knee_fraction: float = eqx.field(static=True, default=0.1)
+
+    def parameters(self):
+        return (
+            Parameter("k1", "positive", "N·m/rad", "stiffness below T1"),
+            Parameter("k2", "positive", "N·m/rad", "stiffness between T1 and T2"),
+            Parameter("k3", "positive", "N·m/rad", "stiffness above T2"),
+            Parameter("t1", "positive", "N·m", "first knee torque T1"),
+            Parameter("t2_minus_t1", "positive", "N·m", "T2 − T1 (keeps T2 > T1)"),
+        )
+
+    def __call__(self, params, torque_Nm):
+        k1, k2, k3 = params["k1"], params["k2"], params["k3"]
+        t1 = params["t1"]
+        t2 = t1 + params["t2_minus_t1"]
+        w1, w2 = self.knee_fraction * t1, self.knee_fraction * t2
+
+        def knee(t, w):  # odd: ramps above +t and below −t
+            return _smooth_ramp(torque_Nm - t, w) - _smooth_ramp(-torque_Nm - t, w)
+
+        return torque_Nm / k1 + (1 / k2 - 1 / k1) * knee(t1, w1) + (1 / k3 - 1 / k2) * knee(t2, w2)
+
+
+class PowerLawCompliance(AbstractCompliance):
+    """``θ = sgn(τ)·(|τ|/c)^(1/p)``: p > 1 stiffens with load.
+
+    |τ| is smoothed over ``smoothing_Nm`` so the curve and its gradients stay finite at 0.
+    """
+
+    smoothing_Nm: float = eqx.field(static=True, default=1e-3)
+
+    def parameters(self):
+        return (
+            Parameter("power_scale", "positive", "N·m", "torque c that twists 1 rad"),
+            Parameter("power_exponent", "positive", "1", "exponent p"),
+        )
+
+    def __call__(self, params, torque_Nm):
+        eps = self.smoothing_Nm
+        mag = jnp.sqrt(torque_Nm**2 + eps**2) - eps
+        twist = (mag / params["power_scale"] + 1e-300) ** (1.0 / params["power_exponent"])
+        return jnp.sign(torque_Nm) * twist
+
+
+class AsymmetricCompliance(AbstractCompliance):
+    """Different compliance for + and − torque: ``θ = C(τ)·(1 + α·tanh(τ/w))``.
+
+    α = 0 is the symmetric curve; compliance is (1+α)× for τ ≫ w and (1−α)× for τ ≪ −w.
+    """
+
+    base: AbstractCompliance
+    switch_width_Nm: float = eqx.field(static=True, default=1.0)
+
+    def parameters(self):
+        return self.base.parameters() + (
+            Parameter("compliance_asymmetry", "real", "1", "α: relative +/− compliance difference"),
+        )
+
+    def __call__(self, params, torque_Nm):
+        alpha = params["compliance_asymmetry"]
+        return self.base(params, torque_Nm) * (1.0 + alpha * jnp.tanh(torque_Nm / self.switch_width_Nm))

@@ -1,0 +1,44 @@
+"""What the forward model is driven by, per run, as JAX arrays (SI units)."""
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+
+class HysteresisInput(eqx.Module):
+    """Input locked, output loaded: the drive torque sequence and its time stamps.
+
+    ``torque_Nm`` should be the *denoised* measured torque: raw sensor noise fakes tiny
+    reversals and makes the friction state chatter.
+    """
+
+    time_s: jnp.ndarray
+    torque_Nm: jnp.ndarray
+
+
+class TEInput(eqx.Module):
+    """Rotating under constant load: output angles, nominal load, speed and direction."""
+
+    output_angle_rad: jnp.ndarray
+    time_s: jnp.ndarray
+    torque_Nm: jnp.ndarray  # scalar, nominal load ≥ 0
+    speed_rad_s: jnp.ndarray  # scalar, output speed ≥ 0
+    direction: jnp.ndarray  # scalar, +1 forward, −1 backward
+
+
+def hysteresis_input(time_s, torque_Nm) -> HysteresisInput:
+    return HysteresisInput(jnp.asarray(time_s, float), jnp.asarray(torque_Nm, float))
+
+
+def te_input(output_angle_rad, torque_Nm, speed_rpm, direction, time_s=None) -> TEInput:
+    phi = np.asarray(output_angle_rad, float)
+    if time_s is None:  # constant speed: time follows from angle
+        speed = max(speed_rpm * 2 * np.pi / 60, 1e-12)
+        time_s = (phi - phi[0]) / speed
+    return TEInput(
+        jnp.asarray(phi),
+        jnp.asarray(time_s, float),
+        jnp.asarray(float(torque_Nm)),
+        jnp.asarray(speed_rpm * 2 * np.pi / 60.0),
+        jnp.asarray(float(direction)),
+    )

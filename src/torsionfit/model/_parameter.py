@@ -1,0 +1,17 @@
+"""What a model parameter is: its name, its constraint (which sets the bijection the fit
+uses), its SI unit and its meaning. Components declare these; nothing here holds values."""
+
+from dataclasses import dataclass
+from typing import Literal
+
+Constraint = Literal["positive", "real", "unit_interval"]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    name: str
+    constraint: Constraint
+    unit: str  # SI unit of the value
+    description: str
+    size: int = 1  # > 1 for per-run or per-order vectors
+    linear: bool = False  # enters the prediction linearly (offsets, harmonics, drift)

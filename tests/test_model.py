@@ -1,0 +1,260 @@
+"""Forward model: gradients, scan equivalence, physics checks (DESIGN §1)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import torsionfit.model as m
+
+RATED = 100.0  # N·m
+
+
+def five_step(rated_Nm=RATED, rate_Nm_per_s=10.0, samples_per_step=400):
+    """The paper's protocol 0→+T→0→−T→0→+T as (time, torque), loaded at a constant rate."""
+    step = rated_Nm / rate_Nm_per_s
+    knots_t = step * np.arange(6)
+    knots_tau = rated_Nm * np.array([0, 1, 0, -1, 0, 1.0])
+    t = np.linspace(0, knots_t[-1], 5 * samples_per_step + 1)
+    return t, np.interp(t, knots_t, knots_tau)
+
+
+def base_params(**over):
+    p = dict(
+        stiffness=2.0e5,  # N·m/rad
+        friction_torque=3.0,
+        dahl_torque=1.5,
+        gap=2e-4,
+        gap_torque=2.0,
+        angle_offset=jnp.array([1e-4]),
+    )
+    p.update(over)
+    return p
+
+
+def full_model_and_data():
+    """Every component switched on, one hysteresis and two TE runs."""
+    model = m.CampaignModel(
+        run_kinds=("hysteresis", "transmission_error", "transmission_error"),
+        compliance=m.AsymmetricCompliance(m.ThreeSegmentCompliance(), switch_width_Nm=5.0),
+        creep=m.Creep(),
+        kinematic=m.KinematicHarmonics(orders=(1, 2, 14)),
+        speed=m.SpeedDependence(viscous=True, compliance_order=2),
+        drift=True,
+        torque_offset=True,
+    )
+    t, tau = five_step(samples_per_step=60)
+    phi = np.linspace(0, 2 * np.pi, 200)
+    inputs = [
+        m.hysteresis_input(t, tau),
+        m.te_input(phi, 80.0, 5.0, +1),
+        m.te_input(phi, 80.0, 10.0, -1),
+    ]
+    params = dict(
+        k1=1.5e5, k2=2.0e5, k3=2.5e5, t1=20.0, t2_minus_t1=40.0,
+        compliance_asymmetry=0.05,
+        friction_torque=3.0, dahl_torque=1.5, gap=2e-4, gap_torque=2.0,
+        creep_stiffness=2e6, creep_time=8.0,
+        viscous_friction=0.5, speed_compliance_1=0.01, speed_compliance_2=0.002,
+        torque_offset=0.3,
+        angle_offset=jnp.array([1e-4]), te_offset=jnp.array([-2e-5]),
+        kin_cos=jnp.array([1e-5, 2e-6, 1e-6]), kin_sin=jnp.array([-5e-6, 1e-6, 3e-7]),
+        drift=jnp.array([1e-7, -2e-7, 3e-7]),
+    )
+    return model, inputs, params
+
+
+def test_parameters_declared_match_params_used():
+    model, inputs, params = full_model_and_data()
+    names = [p.name for p in model.parameters()]
+    assert sorted(names) == sorted(params)
+    sizes = {p.name: p.size for p in model.parameters()}
+    for k, v in params.items():
+        assert np.size(v) == sizes[k], k
+
+
+def test_components_sum_to_total():
+    model, inputs, params = full_model_and_data()
+    for comps in model.components(params, inputs):
+        parts = sum(comps[k] for k in m.COMPONENTS)
+        np.testing.assert_allclose(parts, comps["total"], rtol=0, atol=1e-15)
+        for k in m.COMPONENTS:
+            assert np.all(np.isfinite(comps[k]))
+
+
+@pytest.mark.parametrize("name", [
+    "k1", "k2", "k3", "t1", "t2_minus_t1", "compliance_asymmetry", "friction_torque",
+    "dahl_torque", "gap", "gap_torque", "creep_stiffness", "creep_time", "viscous_friction",
+    "speed_compliance_1", "speed_compliance_2", "torque_offset", "angle_offset", "te_offset",
+    "kin_cos", "kin_sin", "drift",
+])
+def test_gradient_matches_finite_difference(name):
+    model, inputs, params = full_model_and_data()
+    rng = np.random.default_rng(0)
+    weights = [jnp.asarray(rng.normal(size=np.shape(x.output_angle_rad if isinstance(x, m.TEInput) else x.time_s))) for x in inputs]
+
+    def objective(p):
+        # a smooth scalar of every run's prediction, in arcsec so magnitudes are O(1)
+        preds = model.predict(p, inputs)
+        return sum(jnp.sum(w * y) for w, y in zip(weights, preds)) * 206264.8
+
+    grad = jax.grad(objective)(params)[name]
+    value = np.atleast_1d(np.asarray(params[name], float))
+    for i in range(value.size):
+        h = 1e-6 * max(abs(value[i]), 1e-3 if name != "torque_offset" else 1.0)
+        if name in ("kin_cos", "kin_sin", "drift", "angle_offset", "te_offset"):
+            h = 1e-9
+
+        def shifted(delta):
+            v = value.copy()
+            v[i] += delta
+            q = dict(params)
+            q[name] = jnp.asarray(v) if np.ndim(params[name]) else v[0]
+            return float(objective(q))
+
+        fd = (shifted(h) - shifted(-h)) / (2 * h)
+        g = float(np.atleast_1d(grad)[i])
+        assert g == pytest.approx(fd, rel=1e-5, abs=1e-6 * max(1.0, abs(fd))), (name, i)
+
+
+@pytest.mark.parametrize("n", [1, 7, 1000, 4097])
+def test_associative_scan_equals_serial(n):
+    rng = np.random.default_rng(n)
+    a = jnp.asarray(rng.uniform(0.0, 1.0, n))
+    b = jnp.asarray(rng.normal(size=n))
+    x_assoc = m.affine_scan(a, b, 0.3, "associative")
+    x_serial = m.affine_scan(a, b, 0.3, "serial")
+    np.testing.assert_allclose(x_assoc, x_serial, rtol=0, atol=1e-12)
+
+
+def test_model_scan_methods_agree():
+    model, inputs, params = full_model_and_data()
+    assoc = [m_ for m_ in model.__class__(**{**model.__dict__, "scan": "associative"}).predict(params, inputs)]
+    serial = model.__class__(**{**model.__dict__, "scan": "serial"}).predict(params, inputs)
+    for x, y in zip(assoc, serial):
+        np.testing.assert_allclose(x, y, rtol=0, atol=1e-12)
+
+
+def test_auto_scan_is_serial_on_cpu():
+    if jax.default_backend() == "cpu":
+        assert m.resolve_scan_method("auto") == "serial"
+    with pytest.raises(ValueError, match="scan method"):
+        m.resolve_scan_method("parallel")
+
+
+def loop_area(theta, tau):
+    """∮ τ dθ by the trapezoid rule over the given samples."""
+    return float(np.sum(0.5 * (tau[1:] + tau[:-1]) * np.diff(theta)))
+
+
+def hysteresis_prediction(params, model=None, rate=10.0, samples_per_step=400):
+    model = model or m.CampaignModel(run_kinds=("hysteresis",))
+    t, tau = five_step(rate_Nm_per_s=rate, samples_per_step=samples_per_step)
+    comps = model.components(params, [m.hysteresis_input(t, tau)])[0]
+    return t, tau, comps
+
+
+def test_zero_friction_gives_zero_loop_area():
+    _, tau, c = hysteresis_prediction(base_params(friction_torque=1e-12))
+    # the closed part of the loop: from the end of step 1 to the end of step 5
+    i = len(tau) // 5
+    assert abs(loop_area(np.asarray(c["total"])[i:], tau[i:])) < 1e-9
+
+
+def test_friction_gives_positive_loop_area():
+    _, tau, c = hysteresis_prediction(base_params())
+    i = len(tau) // 5
+    assert loop_area(np.asarray(c["total"])[i:], tau[i:]) > 0
+
+
+def test_loop_width_at_zero_torque_is_two_tf_over_k():
+    """Linear spring, no gap: once friction has saturated the loop is 2·T_f/K wide at τ = 0."""
+    model = m.CampaignModel(run_kinds=("hysteresis",), backlash=m.NoBacklash())
+    p = base_params(friction_torque=4.0, dahl_torque=0.5)
+    _, tau, c = hysteresis_prediction(p, model=model, samples_per_step=2000)
+    theta = np.asarray(c["total"])
+    n = len(tau) // 5
+    down = np.interp(0.0, tau[2 * n:n:-1], theta[2 * n:n:-1])  # step 2 ends at τ = 0
+    up = np.interp(0.0, tau[3 * n:4 * n + 1], theta[3 * n:4 * n + 1])  # step 4 ends at τ = 0
+    assert down - up == pytest.approx(2 * 4.0 / 2.0e5, rel=1e-6)
+
+
+def angle_at_rated(rate, creep_on=True):
+    model = m.CampaignModel(run_kinds=("hysteresis",), creep=m.Creep() if creep_on else None)
+    p = base_params(creep_stiffness=1.0e6, creep_time=5.0)
+    _, _, c = hysteresis_prediction(p, model=model, rate=rate)
+    return float(c["total"][-1] - c["offset"][-1])
+
+
+def test_faster_loading_gives_smaller_angle_with_creep():
+    slow, mid, fast = (angle_at_rated(r) for r in (1.0, 5.0, 25.0))
+    assert slow > mid > fast
+    # without creep the model is rate-independent
+    assert angle_at_rated(1.0, False) == pytest.approx(angle_at_rated(25.0, False), rel=1e-12)
+
+
+def te_at_speed(speed_rpm, viscous):
+    model = m.CampaignModel(
+        run_kinds=("transmission_error",),
+        speed=m.SpeedDependence(viscous=viscous, compliance_order=0),
+    )
+    p = base_params(te_offset=jnp.zeros(1), viscous_friction=2.0)
+    del p["angle_offset"]
+    if not viscous:
+        del p["viscous_friction"]
+    phi = np.linspace(0, 2 * np.pi, 100)
+    return float(model.predict(p, [m.te_input(phi, RATED, speed_rpm, +1)])[0].mean())
+
+
+def test_te_grows_with_speed_when_viscous_friction_is_on():
+    te = [te_at_speed(v, True) for v in (1.0, 5.0, 10.0)]
+    assert te[0] < te[1] < te[2]
+    flat = [te_at_speed(v, False) for v in (1.0, 10.0)]
+    assert flat[0] == pytest.approx(flat[1], rel=1e-12)
+
+
+def test_te_direction_flips_sign_of_twist():
+    model = m.CampaignModel(run_kinds=("transmission_error",) * 2)
+    p = base_params(te_offset=jnp.zeros(1))
+    del p["angle_offset"]
+    phi = np.linspace(0, 2 * np.pi, 50)
+    fw, bw = model.predict(p, [m.te_input(phi, RATED, 5, +1), m.te_input(phi, RATED, 5, -1)])
+    np.testing.assert_allclose(fw, -bw, atol=1e-15)
+    assert float(fw[0]) == pytest.approx((RATED + 3.0) / 2.0e5 + 1e-4 * np.tanh(103 / 2.0), rel=1e-12)
+
+
+def test_three_segment_slopes():
+    c = m.ThreeSegmentCompliance(knee_fraction=0.02)
+    p = dict(k1=1e5, k2=2e5, k3=4e5, t1=10.0, t2_minus_t1=40.0)
+    tau = jnp.array([2.0, 6.0, 20.0, 40.0, 70.0, 90.0])
+    th = np.asarray(c(p, tau))
+    assert (th[1] - th[0]) / 4.0 == pytest.approx(1 / 1e5, rel=1e-3)
+    assert (th[3] - th[2]) / 20.0 == pytest.approx(1 / 2e5, rel=1e-3)
+    assert (th[5] - th[4]) / 20.0 == pytest.approx(1 / 4e5, rel=1e-3)
+    np.testing.assert_allclose(c(p, -tau), -th, rtol=1e-12)
+
+
+def test_power_law_and_asymmetry():
+    pl = m.PowerLawCompliance()
+    p = dict(power_scale=1e5, power_exponent=1.5)
+    assert float(pl(p, jnp.array(50.0))) == pytest.approx((50.0 / 1e5 + 1e-300) ** (1 / 1.5), rel=1e-4)
+    assert float(pl(p, jnp.array(-50.0))) == pytest.approx(-float(pl(p, jnp.array(50.0))))
+    asym = m.AsymmetricCompliance(m.LinearCompliance(), switch_width_Nm=1.0)
+    q = dict(stiffness=1e5, compliance_asymmetry=0.1)
+    assert float(asym(q, jnp.array(50.0))) == pytest.approx(1.1 * 50 / 1e5, rel=1e-9)
+    assert float(asym(q, jnp.array(-50.0))) == pytest.approx(-0.9 * 50 / 1e5, rel=1e-9)
+
+
+def test_duplicate_time_stamps_are_harmless():
+    """Benches quantise time: Δt = 0 must leave creep unchanged, not divide by zero."""
+    model = m.CampaignModel(run_kinds=("hysteresis",), creep=m.Creep())
+    t, tau = five_step(samples_per_step=100)
+    t = np.floor(t / 0.5) * 0.5  # many rows share a stamp
+    p = base_params(creep_stiffness=1e6, creep_time=5.0)
+    y = model.predict(p, [m.hysteresis_input(t, tau)])[0]
+    assert np.all(np.isfinite(y))
+
+
+def test_unknown_run_kind_rejected():
+    with pytest.raises(ValueError, match="unknown run kind"):
+        m.CampaignModel(run_kinds=("torque_ramp",))
