@@ -1,0 +1,199 @@
+"""Simulate a campaign on the virtual bench: the forward model plus sensor models."""
+
+from dataclasses import dataclass
+
+import jax.numpy as jnp
+import numpy as np
+
+from .. import model as m
+from .._errors import InputError
+from ..io import Campaign, HysteresisRun, TransmissionErrorRun
+from ..units import ANGLE_UNITS
+from ._config import Bench, HysteresisSpec, TESpec
+
+_ARCSEC = ANGLE_UNITS["arcsec"]
+_LINEAR_DEFAULTS = ("angle_offset", "te_offset", "drift", "kin_cos", "kin_sin")
+
+
+@dataclass(frozen=True, eq=False)
+class Simulation:
+    """A simulated campaign with the truth that made it (SI parameters and components)."""
+
+    campaign: Campaign
+    model: m.CampaignModel
+    truth: dict
+    components: list  # per run: dict of true components (rad), noise-free
+    measured_torque_true: list  # per run: the true (noise-free) torque driving the model, N·m
+
+
+def five_step_protocol(peak_Nm, rate_Nm_per_s, sample_rate_Hz, cycles=1, dwell_s=0.0):
+    """Time and torque of the paper's protocol: 0→+P→0→−P→0→+P (steps 1–5), with
+    ``cycles − 1`` repeats of steps 2–5 and an optional dwell at each peak."""
+    levels = [0.0, peak_Nm, 0.0, -peak_Nm, 0.0, peak_Nm]
+    for _ in range(cycles - 1):
+        levels += [0.0, -peak_Nm, 0.0, peak_Nm]
+    knots_t, knots_tau, t = [0.0], [0.0], 0.0
+    for prev, nxt in zip(levels[:-1], levels[1:]):
+        t += abs(nxt - prev) / rate_Nm_per_s
+        knots_t.append(t)
+        knots_tau.append(nxt)
+        if dwell_s > 0 and abs(nxt) == peak_Nm:
+            t += dwell_s
+            knots_t.append(t)
+            knots_tau.append(nxt)
+    n = int(round(knots_t[-1] * sample_rate_Hz)) + 1
+    time = np.linspace(0.0, knots_t[-1], n)
+    return time, np.interp(time, knots_t, knots_tau)
+
+
+def truth_model(run_kinds, effects: dict, rated_torque_Nm: float, scan="auto") -> m.CampaignModel:
+    """The model structure a bench's ``[effects]`` describe (base model + extensions)."""
+    compliance = m.LinearCompliance()
+    nonlin = effects.get("stiffness_nonlinearity")
+    if nonlin in (True, "three_segment"):
+        compliance = m.ThreeSegmentCompliance()
+    elif nonlin == "power_law":
+        compliance = m.PowerLawCompliance()
+    elif nonlin not in (None, False):
+        raise InputError(f"[effects].stiffness_nonlinearity: expected 'three_segment' or 'power_law', got {nonlin!r}")
+    asym = effects.get("asymmetry")
+    if asym:
+        width = asym.get("switch_width_Nm", 0.05 * rated_torque_Nm) if isinstance(asym, dict) else 0.05 * rated_torque_Nm
+        compliance = m.AsymmetricCompliance(compliance, switch_width_Nm=float(width))
+    kin = effects.get("kinematic_error")
+    kinematic = None
+    if kin:
+        orders = kin.get("orders") if isinstance(kin, dict) else kin
+        if not isinstance(orders, list) or not all(isinstance(o, int) and o > 0 for o in orders):
+            raise InputError(f"[effects].kinematic_error: expected a list of positive integer orders, got {kin!r}")
+        kinematic = m.KinematicHarmonics(orders=tuple(orders))
+    sp = effects.get("speed_dependence")
+    speed = None
+    if sp:
+        opts = sp if isinstance(sp, dict) else {}
+        speed = m.SpeedDependence(viscous=bool(opts.get("viscous", True)), compliance_order=int(opts.get("compliance_order", 0)))
+    return m.CampaignModel(
+        run_kinds=tuple(run_kinds),
+        compliance=compliance,
+        creep=m.Creep() if effects.get("rate_dependence") else None,
+        kinematic=kinematic,
+        speed=speed,
+        drift=bool(effects.get("thermal_drift")),
+        torque_offset=bool(effects.get("torque_offset")),
+        scan=scan,
+    )
+
+
+def _complete_truth(model: m.CampaignModel, truth: dict, where: str) -> dict:
+    """Check the truth names every physical parameter; linear ones default to zero."""
+    params = {}
+    for p in model.parameters():
+        if p.name in truth:
+            value = np.asarray(truth[p.name], float)
+            if p.size > 1 or p.linear:
+                value = np.broadcast_to(value, (p.size,)).copy() if value.size in (1, p.size) else None
+                if value is None:
+                    raise InputError(f"{where} [truth].{p.name}: expected 1 or {p.size} values")
+            params[p.name] = jnp.asarray(value)
+        elif p.name in _LINEAR_DEFAULTS:
+            params[p.name] = jnp.zeros(p.size)
+        else:
+            raise InputError(f"{where} [truth]: missing parameter {p.name!r} ({p.description}, SI unit {p.unit})")
+    extra = set(truth) - {p.name for p in model.parameters()}
+    if extra:
+        raise InputError(f"{where} [truth]: {sorted(extra)[0]!r} is not a parameter of the model these [effects] describe")
+    return params
+
+
+def _ar1_noise(rng, n, sd, phi):
+    if sd <= 0:
+        return np.zeros(n)
+    e = rng.normal(0.0, sd * np.sqrt(1 - phi**2), n)
+    x = np.empty(n)
+    x[0] = rng.normal(0.0, sd)
+    for i in range(1, n):
+        x[i] = phi * x[i - 1] + e[i]
+    return x
+
+
+def _quantise(x, step):
+    return x if step is None else np.round(x / step) * step
+
+
+def simulate(bench: Bench, seed: int | None = None) -> Simulation:
+    """Simulate every run of ``bench`` with its sensors; ``seed`` overrides the bench's."""
+    rng = np.random.default_rng(bench.seed if seed is None else seed)
+    where = str(bench.path or "bench")
+    kinds = ["hysteresis" if isinstance(r, HysteresisSpec) else "transmission_error" for r in bench.runs]
+    model = truth_model(kinds, bench.effects, bench.reducer.rated_torque_Nm)
+    truth = _complete_truth(model, bench.truth, where)
+    ins = bench.instrument
+    res = None if ins.encoder_resolution_arcsec is None else ins.encoder_resolution_arcsec * _ARCSEC
+    torque_sd = bench.noise.torque_sd_Nm if bench.noise.torque_sd_Nm is not None else (ins.torque_sd_Nm or 0.0)
+    offset = float(truth["torque_offset"]) if "torque_offset" in truth else 0.0
+    ripple = bench.effects.get("encoder_ripple")
+
+    def measured_angle(theta, position=0.0):
+        """Output encoder at ``position + theta``: sub-division ripple (if on), extra noise,
+        quantisation. Returns the reading relative to ``position``."""
+        if ripple:
+            amp = float(ripple.get("amplitude_arcsec", 0.0)) * _ARCSEC
+            period = float(ripple.get("period_arcsec", 60.0)) * _ARCSEC
+            theta = theta + amp * np.sin(2 * np.pi * (position + theta) / period)
+        theta = theta + _ar1_noise(rng, len(theta), bench.noise.angle_sd_arcsec * _ARCSEC, bench.noise.angle_ar1)
+        return _quantise(position + theta, res) - position
+
+    inputs, drives = [], []
+    for spec in bench.runs:
+        if isinstance(spec, HysteresisSpec):
+            t, tau = five_step_protocol(spec.peak_torque_Nm, spec.loading_rate_Nm_per_s, ins.sample_rate_Hz, spec.cycles, spec.dwell_s)
+            inputs.append(m.hysteresis_input(t, tau + offset))  # the sensor reads true torque + offset
+            drives.append(tau)
+        else:
+            n = int(round(spec.revolutions * bench.te_samples_per_rev))
+            # sample positions start at an arbitrary phase, so they do not fall on encoder steps
+            step = 2 * np.pi / bench.te_samples_per_rev
+            phi = np.linspace(0.0, 2 * np.pi * spec.revolutions, n + 1) + rng.uniform(0.0, step)
+            if spec.direction < 0:
+                phi = phi[::-1]
+            inputs.append(m.te_input(phi, spec.torque_Nm + offset, spec.speed_rpm, spec.direction))
+            drives.append(np.full(n + 1, spec.torque_Nm))
+    comps = model.components(truth, inputs)
+
+    runs, hyst_i = [], 0
+    for spec, inp, c, tau in zip(bench.runs, inputs, comps, drives):
+        total = np.asarray(c["total"])
+        if isinstance(spec, HysteresisSpec):
+            # the locked loop sits at one output position: its kinematic error is a constant
+            if model.kinematic is not None:
+                total = total + float(model.kinematic(truth, jnp.asarray([np.deg2rad(spec.position_deg)]))[0])
+            hyst_i += 1
+            runs.append(HysteresisRun(
+                name=spec.name,
+                time_s=np.asarray(inp.time_s),
+                torque_Nm=tau + offset + rng.normal(0.0, torque_sd, len(tau)),
+                angle_rad=measured_angle(total, np.deg2rad(spec.position_deg)),
+                loading_rate_Nm_per_s=spec.loading_rate_Nm_per_s,
+                source="synthetic",
+            ))
+        else:
+            phi = np.asarray(inp.output_angle_rad)
+            # TE = θ_out − θ_in/R from two quantised encoders (θ_out = φ, θ_in = R(φ − TE));
+            # the input encoder is R× finer once referred to the output
+            ratio = bench.reducer.ratio or 1.0
+            theta_out = phi + measured_angle(np.zeros_like(phi), phi)
+            theta_in = _quantise(ratio * (phi - total), res)
+            te = theta_out - theta_in / ratio
+            runs.append(TransmissionErrorRun(
+                name=spec.name,
+                output_angle_rad=phi,
+                te_rad=te,
+                torque_Nm=spec.torque_Nm,
+                speed_rpm=spec.speed_rpm,
+                direction=spec.direction,
+                time_s=np.asarray(inp.time_s),
+                torque_series_Nm=tau + offset + rng.normal(0.0, torque_sd, len(tau)),
+                source="synthetic",
+            ))
+    campaign = Campaign(reducer=bench.reducer, instrument=bench.instrument, runs=tuple(runs), notes=bench.label)
+    return Simulation(campaign=campaign, model=model, truth=truth, components=comps, measured_torque_true=drives)

@@ -1,0 +1,70 @@
+"""Weakly informative priors, scaled from the rated torque and a first look at the data.
+
+Every prior is normal in the unconstrained space: log-normal for positive quantities
+(a median and a spread in e-folds), normal for real ones. Written as (mean_u, sd_u).
+"""
+
+import math
+
+import numpy as np
+
+from ..io import Campaign, HysteresisRun
+
+
+def first_look_stiffness(campaign: Campaign) -> float:
+    """Rough elastic stiffness (N·m/rad) from the data: the slope of angle versus torque over
+    the upper half of the torque range of the hysteresis runs, both signs, beyond the gap;
+    from TE runs, load / mean TE when no hysteresis run exists."""
+    slopes = []
+    for run in campaign.runs:
+        if isinstance(run, HysteresisRun):
+            tau, th = run.torque_Nm, run.angle_rad
+            top = np.max(np.abs(tau))
+            for sign in (1, -1):
+                sel = sign * tau > 0.5 * top
+                if np.sum(sel) > 5 and np.ptp(tau[sel]) > 0:
+                    slope = np.polyfit(tau[sel], th[sel], 1)[0]
+                    if slope > 0:
+                        slopes.append(slope)
+    if slopes:
+        return 1.0 / float(np.median(slopes))
+    te = [abs(r.torque_Nm) / max(abs(np.mean(r.te_rad)), 1e-12) for r in campaign.te_runs if r.torque_Nm > 0]
+    if te:
+        return float(np.median(te))
+    return campaign.reducer.rated_torque_Nm / math.radians(1.0)
+
+
+def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float]]:
+    """(mean_u, sd_u) for each non-linear model parameter."""
+    rated = campaign.reducer.rated_torque_Nm
+    k0 = first_look_stiffness(campaign)
+    twist0 = rated / k0  # rated twist, rad
+    durations = [float(np.ptp(r.time_s)) for r in campaign.hysteresis_runs] or [100.0]
+    speeds = [r.speed_rpm * 2 * math.pi / 60 for r in campaign.te_runs] or [1.0]
+    v_max = max(max(speeds), 1e-3)
+    log = math.log
+    table = {
+        "stiffness": (log(k0), 1.5),
+        "k1": (log(k0), 1.5), "k2": (log(k0), 1.5), "k3": (log(k0), 1.5),
+        "t1": (log(0.25 * rated), 1.0), "t2_minus_t1": (log(0.5 * rated), 1.0),
+        "power_scale": (log(k0), 3.0), "power_exponent": (0.0, 0.5),
+        "compliance_asymmetry": (0.0, 0.3),
+        "friction_torque": (log(0.02 * rated), 2.0),
+        "dahl_torque": (log(0.02 * rated), 2.0),
+        "gap": (log(0.1 * twist0), 2.5),
+        "gap_torque": (log(0.02 * rated), 2.0),
+        "creep_stiffness": (log(5 * k0), 2.0),
+        "creep_time": (log(0.1 * max(durations)), 2.0),
+        "viscous_friction": (log(0.01 * rated / v_max), 2.5),
+        "speed_compliance_1": (0.0, 1.0 / v_max),
+        "speed_compliance_2": (0.0, 1.0 / v_max**2),
+        "torque_offset": (0.0, 0.05 * rated),
+    }
+    out = {}
+    for p in parameters:
+        if p.linear:
+            continue
+        if p.name not in table:
+            raise KeyError(f"no prior for model parameter {p.name!r}")
+        out[p.name] = table[p.name]
+    return out

@@ -1,0 +1,131 @@
+"""From a manifest's run entry and its file to a checked run in SI units."""
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._errors import InputError
+from ._campaign import HysteresisRun, Reducer, TransmissionErrorRun
+from ._columns import resolve_columns
+from ._read import Table, read_table, select_rows
+
+#: fewest samples a run may have after selection
+MIN_SAMPLES = 10
+#: a hysteresis run's largest |torque| must reach this fraction of its nominal peak load
+PEAK_FRACTION = 0.9
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """What the manifest says about one run (values checked, units as in the manifest)."""
+
+    index: int  # position in [[runs]], 0-based, for messages
+    name: str
+    kind: str  # "hysteresis" | "transmission_error"
+    file: str  # as written in the manifest
+    path: Path  # resolved against the manifest's folder
+    columns: dict[str, str] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)
+    select: dict = field(default_factory=dict)
+    # hysteresis
+    loading_rate_Nm_per_s: float | None = None
+    peak_torque_Nm: float | None = None
+    # transmission error
+    speed_rpm: float | None = None
+    torque_Nm: float | None = None
+    direction: int | None = None
+
+
+def read_run(spec: RunSpec, reducer: Reducer, where: str):
+    """Read, select, convert and check one run. ``where`` names the manifest, run and file."""
+    table = read_table(spec.path, where)
+    found = resolve_columns(table.header, spec.kind, spec.columns, spec.units, where)
+    if spec.select:
+        table = select_rows(table, spec.select, where)
+    if len(table) < MIN_SAMPLES:
+        after = " after [runs.select]" if spec.select else ""
+        raise InputError(
+            f"{where}: only {len(table)} data row(s){after}; a run needs at least {MIN_SAMPLES}"
+        )
+
+    def si(canonical: str) -> np.ndarray | None:
+        column = found.get(canonical)
+        return None if column is None else table.numbers(column.name) * column.factor
+
+    time = si("time")
+    if time is not None:
+        _check_time(time, table, found["time"].name, where)
+    if spec.kind == "hysteresis":
+        return _hysteresis(spec, reducer, table, si, time, found, where)
+    return _transmission_error(spec, reducer, si, time, found, where)
+
+
+def _check_time(time: np.ndarray, table: Table, column: str, where: str) -> None:
+    # Equal stamps are fine (benches quantise time); only a step back means mixed-up rows.
+    back = np.flatnonzero(np.diff(time) < 0)
+    if back.size:
+        i = back[0] + 1
+        raise InputError(
+            f"{where}: column {column!r} goes backwards at line {table.lines[i]} "
+            f"({table.cells[column][i].strip()} after {table.cells[column][i - 1].strip()} "
+            f"on line {table.lines[i - 1]}); time must not decrease"
+        )
+
+
+def _hysteresis(spec, reducer, table, si, time, found, where) -> HysteresisRun:
+    torque = si("torque")
+    peak = spec.peak_torque_Nm if spec.peak_torque_Nm is not None else reducer.rated_torque_Nm
+    reached = float(np.max(np.abs(torque)))
+    if reached < PEAK_FRACTION * peak:
+        origin = "peak_torque_Nm" if spec.peak_torque_Nm is not None else "rated_torque_Nm"
+        raise InputError(
+            f"{where}: column {found['torque'].name!r} reaches only |torque| = {reached:.4g} N·m, "
+            f"below {PEAK_FRACTION} × the nominal peak load {peak:.4g} N·m ({origin}); "
+            f"check the torque column and its unit, or set peak_torque_Nm for this run"
+        )
+    return HysteresisRun(
+        name=spec.name,
+        time_s=time,
+        torque_Nm=torque,
+        angle_rad=si("angle"),
+        loading_rate_Nm_per_s=spec.loading_rate_Nm_per_s,
+        temperature_C=si("temperature"),
+        source=str(spec.path),
+        peak_torque_Nm=spec.peak_torque_Nm,
+    )
+
+
+def _transmission_error(spec, reducer, si, time, found, where) -> TransmissionErrorRun:
+    output = si("output_angle")
+    if "te" in found:
+        te = si("te")
+    else:
+        if reducer.ratio is None:
+            raise InputError(
+                f"{where}: column {found['input_angle'].name!r} needs [reducer] ratio to compute "
+                f"te = output_angle - input_angle / ratio; add ratio or give a te_<unit> column"
+            )
+        te = output - si("input_angle") / reducer.ratio
+    # Sampling at n equal steps over one turn ends one step short of 360°, so the step is
+    # added to the span before comparing.
+    span = float(np.ptp(output))
+    step = float(np.median(np.abs(np.diff(output))))
+    if span + step < 2.0 * math.pi * (1.0 - 1e-9):
+        raise InputError(
+            f"{where}: column {found['output_angle'].name!r} spans {math.degrees(span):.4g}°; "
+            f"a transmission-error run must cover at least one output revolution (360°)"
+        )
+    return TransmissionErrorRun(
+        name=spec.name,
+        output_angle_rad=output,
+        te_rad=te,
+        torque_Nm=spec.torque_Nm,
+        speed_rpm=spec.speed_rpm,
+        direction=spec.direction,
+        time_s=time,
+        torque_series_Nm=si("torque"),
+        temperature_C=si("temperature"),
+        source=str(spec.path),
+    )

@@ -1,0 +1,551 @@
+"""Hysteresis-loop analysis from measured data alone (no model fit), DESIGN §1.4.
+
+A hysteresis run is the paper's five-step protocol (input locked, output loaded):
+0 → +T_r (virgin loading), +T_r → 0 → −T_r, −T_r → 0 → +T_r, possibly repeated. This module
+
+1. splits the run into monotone torque segments at the turning points of a smoothed torque,
+2. keeps the *loop branches* — segments that sweep (nearly) the whole range from the negative
+   to the positive peak (the virgin loading from zero is not one),
+3. resamples every branch as angle versus torque on one common torque grid and averages the
+   branches of each direction (:func:`loop_branches`),
+4. reads the catalog metrics off the averaged loop (:func:`hysteresis_metrics`).
+
+Naming: the *upper* branch is the decreasing-torque one, the *lower* branch the
+increasing-torque one. Friction makes the angle lag the load, so for τ > 0 twisting the
+output forward the decreasing-torque branch lies above the increasing-torque one in angle.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._errors import InputError
+from ..io._campaign import HysteresisRun
+from ..units import from_si
+
+#: points of the common torque grid (the grid spacing is also the bin width)
+DEFAULT_N_GRID = 201
+#: a turning point needs the smoothed torque to retreat by this fraction of its range
+DEFAULT_REVERSAL_FRACTION = 0.10
+#: a branch must reach within this fraction of the range of both torque peaks
+DEFAULT_FULL_RANGE_TOLERANCE = 0.10
+#: the loop may fall short of ±T_r by this fraction of T_r; the metric is then extrapolated
+RATED_TOLERANCE = 0.02
+#: outermost fraction of the grid used for that linear extrapolation
+_EXTRAPOLATION_SPAN = 0.05
+#: a noise-made retreat must stay below this many standard deviations of the smoothed torque
+_NOISE_SIGMAS = 8.0
+
+
+# ----------------------------------------------------------------------------- results
+
+
+def _entry(value: float, unit: str, note: str | None = None) -> dict:
+    """One metric as plain JSON: ``{"value": float, "unit": str[, "note": str]}``."""
+    entry = {"value": float(value), "unit": unit}
+    if note:
+        entry["note"] = note
+    return entry
+
+
+@dataclass(frozen=True, eq=False)
+class LoopBranches:
+    """A measured hysteresis loop resampled on a common torque grid (SI units).
+
+    ``upper_rad`` is the mean of the decreasing-torque branches, ``lower_rad`` the mean of the
+    increasing-torque branches; ``upper_all_rad`` / ``lower_all_rad`` hold every branch, one
+    row each. ``segments`` lists every monotone torque segment of the run as
+    ``(start, stop, direction)`` sample indices (``stop`` inclusive, direction ±1) and
+    ``branch_segments`` the indices of those segments that are loop branches.
+    """
+
+    torque_Nm: np.ndarray
+    upper_rad: np.ndarray
+    lower_rad: np.ndarray
+    upper_all_rad: np.ndarray
+    lower_all_rad: np.ndarray
+    peak_Nm: float
+    trough_Nm: float
+    smoothed_torque_Nm: np.ndarray
+    segments: tuple[tuple[int, int, int], ...]
+    branch_segments: tuple[int, ...]
+
+    @property
+    def midline_rad(self) -> np.ndarray:
+        """Loop midline: mean of the upper and lower branch at each grid torque (rad)."""
+        return 0.5 * (self.upper_rad + self.lower_rad)
+
+    @property
+    def width_rad(self) -> np.ndarray:
+        """Loop width in angle, upper − lower, at each grid torque (rad)."""
+        return self.upper_rad - self.lower_rad
+
+    @property
+    def n_upper(self) -> int:
+        return int(self.upper_all_rad.shape[0])
+
+    @property
+    def n_lower(self) -> int:
+        return int(self.lower_all_rad.shape[0])
+
+
+# ----------------------------------------------------------------------------- smoothing
+
+
+def _moving_median(y: np.ndarray, width: int) -> np.ndarray:
+    """Centred running median (removes isolated spikes before the polynomial smoother)."""
+    if width <= 1 or y.size < width:
+        return y.copy()
+    half = width // 2
+    padded = np.pad(y, half, mode="edge")
+    return np.median(np.lib.stride_tricks.sliding_window_view(padded, width), axis=1)
+
+
+def _savgol_weights(width: int) -> np.ndarray:
+    """Weights giving the centre value of a least-squares quadratic over ``width`` samples."""
+    half = width // 2
+    x = np.arange(-half, half + 1, dtype=float)
+    return np.linalg.pinv(np.vander(x, 3, increasing=True))[0]
+
+
+def _savgol(y: np.ndarray, width: int) -> np.ndarray:
+    """Quadratic Savitzky–Golay smoothing by sample index.
+
+    By index, not by time: time stamps may repeat (benches quantise time), samples do not.
+    A quadratic keeps ramps exact and rounds turning points less than a moving mean. The ends
+    are padded by odd reflection, which continues a linear trend through them.
+    """
+    half = width // 2
+    if half < 1 or y.size < 2 * half + 2:
+        return y.copy()
+    left = 2.0 * y[0] - y[half:0:-1]
+    right = 2.0 * y[-1] - y[-2 : -half - 2 : -1]
+    padded = np.concatenate([left, y, right])
+    return np.convolve(padded, _savgol_weights(width)[::-1], mode="valid")
+
+
+def _default_window(n: int) -> int:
+    """Default smoothing window (odd): about 1/400 of the run, at least 5 samples."""
+    width = max(5, n // 400)
+    return width if width % 2 else width + 1
+
+
+# ----------------------------------------------------------------------------- segments
+
+
+def _turning_points(y: np.ndarray, threshold: float) -> list[int]:
+    """Indices of the extremes of ``y`` confirmed by a retreat larger than ``threshold``.
+
+    A zig-zag filter: a maximum counts only once the signal has fallen ``threshold`` below
+    it (and a minimum likewise), so wiggles smaller than the threshold never split a ramp.
+    """
+    points: list[int] = []
+    i_hi = i_lo = 0
+    direction = 0  # +1 rising (looking for a maximum), −1 falling, 0 not yet known
+    for i in range(1, y.size):
+        value = y[i]
+        if direction >= 0 and value > y[i_hi]:
+            i_hi = i
+        if direction <= 0 and value < y[i_lo]:
+            i_lo = i
+        if direction == 0:
+            # The first extreme is a turning point only if the signal also came to it by
+            # more than the threshold (else it is the start of the first ramp).
+            if value - y[i_lo] > threshold:
+                if y[0] - y[i_lo] > threshold:
+                    points.append(i_lo)
+                direction = 1
+                i_hi = i_lo + int(np.argmax(y[i_lo : i + 1]))
+            elif y[i_hi] - value > threshold:
+                if y[i_hi] - y[0] > threshold:
+                    points.append(i_hi)
+                direction = -1
+                i_lo = i_hi + int(np.argmin(y[i_hi : i + 1]))
+        elif direction == 1 and y[i_hi] - value > threshold:
+            points.append(i_hi)
+            direction = -1
+            i_lo = i
+        elif direction == -1 and value - y[i_lo] > threshold:
+            points.append(i_lo)
+            direction = 1
+            i_hi = i
+    return points
+
+
+def _binned_curve(
+    tau: np.ndarray, theta: np.ndarray, grid: np.ndarray, spacing: float
+) -> np.ndarray:
+    """One branch's angle at the grid torques.
+
+    Samples are binned by torque in bins one grid spacing wide centred on the grid; each bin
+    gives the mean torque and the mean angle of its samples, and the grid values are linearly
+    interpolated between these bin means. A mean rather than a median because bench angles
+    are quantised: a median of quantised values is itself quantised, a mean dithers between
+    levels. Pairing mean angle with mean torque (not with the bin centre) removes the bias of
+    half-filled bins at the ends of the branch.
+    """
+    index = np.floor((tau - (grid[0] - 0.5 * spacing)) / spacing).astype(np.int64)
+    index -= index.min()
+    counts = np.bincount(index)
+    used = counts > 0
+    tau_mean = np.bincount(index, weights=tau)[used] / counts[used]
+    theta_mean = np.bincount(index, weights=theta)[used] / counts[used]
+    curve = np.interp(grid, tau_mean, theta_mean)
+    # np.interp holds the end value constant; continue the end slope instead (at most half a
+    # bin is involved, at the branch end that defines the common range).
+    if tau_mean.size >= 2:
+        lo = grid < tau_mean[0]
+        hi = grid > tau_mean[-1]
+        slope_lo = (theta_mean[1] - theta_mean[0]) / (tau_mean[1] - tau_mean[0])
+        slope_hi = (theta_mean[-1] - theta_mean[-2]) / (tau_mean[-1] - tau_mean[-2])
+        curve[lo] = theta_mean[0] + slope_lo * (grid[lo] - tau_mean[0])
+        curve[hi] = theta_mean[-1] + slope_hi * (grid[hi] - tau_mean[-1])
+    return curve
+
+
+def _check_run(run: HysteresisRun) -> tuple[np.ndarray, np.ndarray]:
+    tau = np.asarray(run.torque_Nm, dtype=float)
+    theta = np.asarray(run.angle_rad, dtype=float)
+    time = np.asarray(run.time_s, dtype=float)
+    if not (tau.ndim == theta.ndim == time.ndim == 1 and tau.size == theta.size == time.size):
+        raise InputError(
+            f"hysteresis run {run.name!r}: time, torque and angle must be 1-D arrays of one length"
+        )
+    if tau.size < 20:
+        raise InputError(
+            f"hysteresis run {run.name!r}: {tau.size} samples; a hysteresis loop needs at least 20"
+        )
+    if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(theta)) and np.all(np.isfinite(time))):
+        raise InputError(f"hysteresis run {run.name!r}: non-finite time, torque or angle values")
+    # Equal time stamps are fine (benches quantise time): nothing below divides by Δt.
+    if np.any(np.diff(time) < 0):
+        raise InputError(f"hysteresis run {run.name!r}: time goes backwards; expected time order")
+    return tau, theta
+
+
+def loop_branches(
+    run: HysteresisRun,
+    *,
+    n_grid: int = DEFAULT_N_GRID,
+    smooth_samples: int | None = None,
+    reversal_fraction: float = DEFAULT_REVERSAL_FRACTION,
+    full_range_tolerance: float = DEFAULT_FULL_RANGE_TOLERANCE,
+) -> LoopBranches:
+    """Split a hysteresis run into loop branches and resample them on a common torque grid.
+
+    - The torque is smoothed by sample index (running median of 5, then a quadratic
+      Savitzky–Golay filter over ``smooth_samples``; default about 1/400 of the run, ≥ 5).
+    - Turning points are extremes of the smoothed torque followed by a retreat larger than
+      ``max(reversal_fraction × range, 8 σ)``, σ the noise left in the smoothed torque
+      (estimated from the raw − smoothed residual), so noise cannot fake a reversal.
+    - A segment between turning points is a loop branch when it reaches within
+      ``full_range_tolerance × range`` of both the lowest and the highest smoothed torque;
+      the virgin loading from zero and a final partial ramp are therefore not branches.
+    - The grid spans the torque range common to all branches, ``n_grid`` points; every branch
+      is binned on it by smoothed torque (bin means, see ``_binned_curve``).
+
+    Raises :class:`InputError` when the run holds no full loop (an increasing and a decreasing
+    branch through zero torque).
+    """
+    tau, theta = _check_run(run)
+    if n_grid < 11:
+        raise InputError(f"n_grid must be at least 11, got {n_grid}")
+    width = _default_window(tau.size) if smooth_samples is None else int(smooth_samples)
+    width = max(1, width | 1)  # odd
+
+    smooth = _savgol(_moving_median(tau, 5), width)
+    lo_peak, hi_peak = float(smooth.min()), float(smooth.max())
+    span = hi_peak - lo_peak
+    if span <= 0:
+        raise InputError(f"hysteresis run {run.name!r}: the torque never changes; expected a loop")
+    # Noise left after smoothing: robust σ of the raw residual times the filter's noise gain.
+    sigma_raw = 1.4826 * float(np.median(np.abs(tau - smooth - np.median(tau - smooth))))
+    gain = float(np.sqrt(np.sum(_savgol_weights(width) ** 2))) if width > 1 else 1.0
+    sigma_smooth = sigma_raw * gain
+    threshold = max(reversal_fraction * span, _NOISE_SIGMAS * sigma_smooth)
+
+    bounds = [0, *_turning_points(smooth, threshold), tau.size - 1]
+    segments: list[tuple[int, int, int]] = []
+    for start, stop in zip(bounds[:-1], bounds[1:]):
+        if stop > start:
+            segments.append((start, stop, 1 if smooth[stop] > smooth[start] else -1))
+
+    reach = full_range_tolerance * span
+    branch_ids = [
+        k
+        for k, (start, stop, _) in enumerate(segments)
+        if smooth[start : stop + 1].min() <= lo_peak + reach
+        and smooth[start : stop + 1].max() >= hi_peak - reach
+    ]
+    upper_ids = [k for k in branch_ids if segments[k][2] < 0]  # decreasing torque
+    lower_ids = [k for k in branch_ids if segments[k][2] > 0]  # increasing torque
+    # Both peaks must be clear of zero: a one-sided (pulsating) load is no full loop.
+    if not upper_ids or not lower_ids or not lo_peak < -threshold < threshold < hi_peak:
+        raise InputError(
+            f"hysteresis run {run.name!r}: no full loop found ({len(lower_ids)} increasing and "
+            f"{len(upper_ids)} decreasing torque ramps spanning {lo_peak:.4g}..{hi_peak:.4g} N·m); "
+            f"expected at least one ramp each way between a negative and a positive peak"
+        )
+
+    # Common torque range of all branches (their smoothed extremes).
+    g_lo = max(float(smooth[segments[k][0] : segments[k][1] + 1].min()) for k in branch_ids)
+    g_hi = min(float(smooth[segments[k][0] : segments[k][1] + 1].max()) for k in branch_ids)
+    if not g_lo < 0 < g_hi:
+        raise InputError(
+            f"hysteresis run {run.name!r}: the loop branches share only "
+            f"{g_lo:.4g}..{g_hi:.4g} N·m; expected a common range through zero torque"
+        )
+    grid = np.linspace(g_lo, g_hi, n_grid)
+    spacing = float(grid[1] - grid[0])
+
+    def curves(ids: list[int]) -> np.ndarray:
+        return np.array(
+            [
+                _binned_curve(smooth[s : e + 1], theta[s : e + 1], grid, spacing)
+                for s, e, _ in (segments[k] for k in ids)
+            ]
+        )
+
+    upper_all, lower_all = curves(upper_ids), curves(lower_ids)
+    return LoopBranches(
+        torque_Nm=grid,
+        upper_rad=upper_all.mean(axis=0),
+        lower_rad=lower_all.mean(axis=0),
+        upper_all_rad=upper_all,
+        lower_all_rad=lower_all,
+        peak_Nm=hi_peak,
+        trough_Nm=lo_peak,
+        smoothed_torque_Nm=smooth,
+        segments=tuple(segments),
+        branch_segments=tuple(branch_ids),
+    )
+
+
+# ----------------------------------------------------------------------------- metrics
+
+
+class _Reader:
+    """Evaluates loop curves at a torque, allowing a small extrapolation past the grid ends."""
+
+    def __init__(self, branches: LoopBranches, run_name: str, limit_Nm: float):
+        self.grid = branches.torque_Nm
+        self.run_name = run_name
+        self.limit = limit_Nm  # how far past a grid end a torque may lie
+        self.extrapolated: set[float] = set()
+
+    def __call__(self, curve: np.ndarray, torque: float) -> float:
+        grid = self.grid
+        if grid[0] <= torque <= grid[-1]:
+            return float(np.interp(torque, grid, curve))
+        if torque > grid[-1] + self.limit or torque < grid[0] - self.limit:
+            raise InputError(
+                f"hysteresis run {self.run_name!r}: the loop's branches reach only "
+                f"{grid[0]:.4g}..{grid[-1]:.4g} N·m in common; expected the loop to reach "
+                f"{torque:+.4g} N·m"
+            )
+        # Within the tolerance: straight line through the outermost part of the grid.
+        n = max(3, int(round(_EXTRAPOLATION_SPAN * grid.size)))
+        part = slice(-n, None) if torque > grid[-1] else slice(0, n)
+        slope, intercept = np.polyfit(grid[part], curve[part], 1)
+        self.extrapolated.add(float(torque))
+        return float(slope * torque + intercept)
+
+
+def _stiffness_entries(name: str, k_si: float, note: str) -> dict:
+    return {name: _entry(from_si(k_si, "stiffness", "Nm/arcmin"), "Nm/arcmin", note)}
+
+
+def hysteresis_metrics(
+    run: HysteresisRun,
+    rated_torque_Nm: float,
+    *,
+    lost_motion_pct: float = 3.0,
+    t1_Nm: float | None = None,
+    t2_Nm: float | None = None,
+    branches: LoopBranches | None = None,
+) -> dict[str, dict]:
+    """Catalog metrics of one hysteresis run, from the data alone.
+
+    Returns ``{NAME: {"value": float, "unit": str[, "note": str]}}`` with (T_r =
+    ``rated_torque_Nm``; θ_up = increasing-torque branch, θ_down = decreasing-torque branch,
+    θ_mid their mean, all read off :func:`loop_branches`):
+
+    - ``stiffness_rated`` (N·m/arcmin): the paper's secant T_r / (θ_up(T_r) − θ_ref), θ_up(T_r)
+      the angle at +T_r on the increasing-torque branch (the paper's θ_r, step 5) and θ_ref the
+      loop midpoint at zero torque, θ_mid(0). Includes lost motion and friction: it is not
+      the elastic slope. ``stiffness_rated_negative``: T_r / (θ_ref − θ_down(−T_r)).
+      ``stiffness_rated_Nm_per_deg``: ``stiffness_rated`` in the paper's unit.
+    - ``lost_motion`` (arcmin): θ_mid(+x % T_r) − θ_mid(−x % T_r), x = ``lost_motion_pct``
+      (vendors use 3–5 %).
+    - ``backlash`` (arcmin): loop width at zero torque, θ_down(0) − θ_up(0) (GB/T 35089
+      wording; Harmonic Drive catalogs call the same width "hysteresis loss").
+    - ``dissipated_energy`` (J): loop area ∮ τ dθ = ∫ (θ_down − θ_up) dτ over the torque range
+      common to the branches, per cycle.
+    - ``stiffness_elastic`` (N·m/arcmin): least-squares slope of θ_mid over T1 ≤ |τ| ≤ T_r, one
+      slope with separate intercepts for the + and − sides so the lost motion between them
+      does not leak into the slope.
+    - ``k1``, ``k2``, ``k3`` (N·m/arcmin): secant slopes of θ_mid over [0, T1], [T1, T2],
+      [T2, T_r], from the angle increments averaged over both torque signs. K1 contains any
+      lost motion inside [0, T1]. T1, T2 default to 0.25 T_r and 0.75 T_r; vendors differ
+      (Harmonic Drive and Nabtesco tabulate T1/T2 per size), so pass the catalog's values.
+    - ``peak_torque`` / ``peak_torque_negative`` (N·m): extremes of the smoothed torque;
+      ``rated_torque`` (N·m): the T_r used.
+
+    Raises :class:`InputError` when the loop has no full cycle or does not reach ±T_r (a
+    shortfall up to 2 % of T_r is bridged by linear extrapolation and said in the note).
+    """
+    t_r = float(rated_torque_Nm)
+    if not (math.isfinite(t_r) and t_r > 0):
+        raise InputError(f"hysteresis run {run.name!r}: rated torque must be > 0 N·m, got {t_r!r}")
+    t1 = 0.25 * t_r if t1_Nm is None else float(t1_Nm)
+    t2 = 0.75 * t_r if t2_Nm is None else float(t2_Nm)
+    if not 0 < t1 < t2 < t_r:
+        raise InputError(
+            f"hysteresis run {run.name!r}: need 0 < t1_Nm < t2_Nm < rated torque, got "
+            f"t1={t1:.4g}, t2={t2:.4g}, T_r={t_r:.4g} N·m"
+        )
+    if not 0 < lost_motion_pct < 100:
+        raise InputError(f"lost_motion_pct must be between 0 and 100, got {lost_motion_pct!r}")
+
+    lb = loop_branches(run) if branches is None else branches
+    g_lo, g_hi = float(lb.torque_Nm[0]), float(lb.torque_Nm[-1])
+    if g_hi < (1 - RATED_TOLERANCE) * t_r or g_lo > -(1 - RATED_TOLERANCE) * t_r:
+        raise InputError(
+            f"hysteresis run {run.name!r}: the loop never reaches the rated torque ±{t_r:.4g} N·m "
+            f"(its branches share only {g_lo:.4g}..{g_hi:.4g} N·m; peaks {lb.trough_Nm:.4g} and "
+            f"{lb.peak_Nm:.4g} N·m); expected full loops to ±T_r, or give the nominal peak load"
+        )
+    at = _Reader(lb, run.name, RATED_TOLERANCE * t_r)
+    upper, lower, mid, grid = lb.upper_rad, lb.lower_rad, lb.midline_rad, lb.torque_Nm
+
+    # Reference: the loop midpoint at zero torque (paper inconsistency 4: say which one).
+    theta_ref = 0.5 * (at(upper, 0.0) + at(lower, 0.0))
+    rise_pos = at(lower, t_r) - theta_ref  # step 5 ends at +T_r on the increasing branch
+    rise_neg = theta_ref - at(upper, -t_r)  # step 3 ends at −T_r on the decreasing branch
+    if rise_pos <= 0 or rise_neg <= 0:
+        raise InputError(
+            f"hysteresis run {run.name!r}: the angle does not grow with torque; expected "
+            f"positive torque to twist the output forward (check the angle sign)"
+        )
+    k_pos, k_neg = t_r / rise_pos, t_r / rise_neg
+
+    # The paper's protocol starts unloaded (step 1 is the virgin loading from zero); its angle
+    # there is the other reference TABLES.md names. Unlike θ_mid(0) it does not depend on
+    # reading a steep loop (lost motion closing over a few % of T_r) at a noisy zero torque.
+    from_start = None
+    smooth = lb.smoothed_torque_Nm
+    first = lb.segments[0] if lb.segments else None
+    if (
+        first is not None
+        and 0 not in lb.branch_segments
+        and first[2] > 0
+        and abs(float(smooth[0])) < RATED_TOLERANCE * t_r
+        and float(smooth[first[1]]) >= (1 - RATED_TOLERANCE) * t_r
+    ):
+        rise_start = at(lower, t_r) - float(np.asarray(run.angle_rad, float)[0])
+        if rise_start > 0:
+            from_start = t_r / rise_start
+
+    x = lost_motion_pct / 100.0 * t_r
+    lost = at(mid, x) - at(mid, -x)
+    backlash = at(upper, 0.0) - at(lower, 0.0)
+    energy = float(np.trapezoid(upper - lower, grid))
+
+    # Elastic slope: one slope, separate intercepts per sign, over T1 ≤ |τ| ≤ T_r.
+    num = den = 0.0
+    for side in (grid >= t1, grid <= -t1):
+        sel = side & (np.abs(grid) <= t_r)
+        if np.count_nonzero(sel) < 3:
+            raise InputError(
+                f"hysteresis run {run.name!r}: too few grid points between T1 = {t1:.4g} N·m "
+                f"and T_r on one side for the elastic slope"
+            )
+        dt, dth = grid[sel] - grid[sel].mean(), mid[sel] - mid[sel].mean()
+        num += float(dt @ dth)
+        den += float(dt @ dt)
+    compliance = num / den
+    if compliance <= 0:
+        raise InputError(
+            f"hysteresis run {run.name!r}: the loop midline does not rise with torque above T1"
+        )
+
+    def secant(a: float, b: float) -> float:
+        # Angle increment over [a, b] and over [−b, −a], averaged, then ΔT over it.
+        dtheta = 0.5 * ((at(mid, b) - at(mid, a)) + (at(mid, -a) - at(mid, -b)))
+        if dtheta <= 0:
+            raise InputError(
+                f"hysteresis run {run.name!r}: the loop midline does not rise between "
+                f"{a:.4g} and {b:.4g} N·m"
+            )
+        return (b - a) / dtheta
+
+    k1, k2, k3 = secant(0.0, t1), secant(t1, t2), secant(t2, t_r)
+
+    ext = ""
+    if at.extrapolated:
+        ext = (
+            f"; the loop's common range {grid[0]:.4g}..{grid[-1]:.4g} N·m falls short of ±T_r, "
+            f"values at ±T_r extrapolated linearly"
+        )
+    ref_note = (
+        f"secant T_r/(θ(T_r) − θ_ref) at T_r = {t_r:.4g} N·m, θ(T_r) on the increasing-torque "
+        f"branch (paper step 5), θ_ref the loop midpoint at zero torque; includes lost motion "
+        f"and friction, not the elastic slope{ext}"
+    )
+    neg_note = (
+        f"secant T_r/(θ_ref − θ(−T_r)), θ(−T_r) on the decreasing-torque branch (paper step 3), "
+        f"θ_ref the loop midpoint at zero torque{ext}"
+    )
+    stiff = lambda k: from_si(k, "stiffness", "Nm/arcmin")  # noqa: E731
+    arcmin = lambda a: from_si(a, "angle", "arcmin")  # noqa: E731
+    n_loops = f"{lb.n_lower} increasing and {lb.n_upper} decreasing branches averaged"
+    secant_note = "loop-midline secant, both torque signs (T1, T2 are vendor-specific), over"
+    out = {
+        "stiffness_rated": _entry(stiff(k_pos), "Nm/arcmin", ref_note),
+        "stiffness_rated_negative": _entry(stiff(k_neg), "Nm/arcmin", neg_note),
+        "stiffness_rated_Nm_per_deg": _entry(
+            from_si(k_pos, "stiffness", "Nm/deg"), "Nm/deg", "stiffness_rated in the paper's unit"
+        ),
+        "stiffness_elastic": _entry(
+            stiff(1.0 / compliance),
+            "Nm/arcmin",
+            f"least-squares slope of the loop midline over {t1:.4g} ≤ |τ| ≤ {t_r:.4g} N·m, "
+            f"separate intercepts per torque sign",
+        ),
+        "k1": _entry(stiff(k1), "Nm/arcmin", f"{secant_note} 0..T1 = 0..{t1:.4g} N·m"),
+        "k2": _entry(stiff(k2), "Nm/arcmin", f"{secant_note} T1..T2 = {t1:.4g}..{t2:.4g} N·m"),
+        "k3": _entry(
+            stiff(k3), "Nm/arcmin", f"{secant_note} T2..T_r = {t2:.4g}..{t_r:.4g} N·m{ext}"
+        ),
+        "lost_motion": _entry(
+            arcmin(lost),
+            "arcmin",
+            f"twist between loop midpoints at ±{lost_motion_pct:g} % of T_r (±{x:.4g} N·m)",
+        ),
+        "backlash": _entry(
+            arcmin(backlash),
+            "arcmin",
+            "loop width in angle at zero torque (GB/T 35089 wording; Harmonic Drive catalogs "
+            f"call the same width 'hysteresis loss'); {n_loops}",
+        ),
+        "dissipated_energy": _entry(
+            energy,
+            "J",
+            f"loop area per cycle over {grid[0]:.4g}..{grid[-1]:.4g} N·m",
+        ),
+        "peak_torque": _entry(lb.peak_Nm, "Nm", "highest smoothed torque reached"),
+        "peak_torque_negative": _entry(lb.trough_Nm, "Nm", "lowest smoothed torque reached"),
+        "rated_torque": _entry(t_r, "Nm", "the T_r these metrics refer to"),
+    }
+    if from_start is not None:
+        start_note = (
+            f"secant T_r/(θ(T_r) − θ_start) at T_r = {t_r:.4g} N·m, θ(T_r) on the increasing-torque "
+            f"branch (paper step 5), θ_start the angle at the first sample, unloaded, before step 1 "
+            f"(the paper's protocol reference){ext}"
+        )
+        out["stiffness_rated_from_start"] = _entry(stiff(from_start), "Nm/arcmin", start_note)
+        out["stiffness_rated_from_start_Nm_per_deg"] = _entry(
+            from_si(from_start, "stiffness", "Nm/deg"), "Nm/deg", "stiffness_rated_from_start in the paper's unit"
+        )
+    return out

@@ -1,0 +1,35 @@
+"""Shared pytest fixtures."""
+
+import gzip
+from pathlib import Path
+
+import pytest
+
+#: the shared data folder next to the repository (real measured data, never copied in)
+SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+@pytest.fixture
+def shared_data() -> Path:
+    """Path of the shared data folder; skips the test when the folder is not there."""
+    if not SHARED_DATA.is_dir():
+        pytest.skip(f"shared data folder {SHARED_DATA} is absent (clone the repo next to shared/)")
+    return SHARED_DATA
+
+
+@pytest.fixture
+def write_files(tmp_path):
+    """Write ``{relative name: text}`` under a temporary folder; returns the manifest path
+    ``campaign.toml`` in it. Names ending in ``.gz`` are gzip-compressed."""
+    def write(files: dict[str, str]) -> Path:
+        for name, text in files.items():
+            path = tmp_path / name
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if name.endswith(".gz"):
+                with gzip.open(path, "wt", encoding="utf-8") as handle:
+                    handle.write(text)
+            else:
+                path.write_text(text, encoding="utf-8")
+        return tmp_path / "campaign.toml"
+
+    return write
