@@ -1,6 +1,17 @@
 """Fitting: parameters and priors, likelihood, MAP (optimistix) and its Laplace approximation."""
 
 from ._denoise import denoise_torque as denoise_torque
-from ._map import MapResult as MapResult, fit_map as fit_map
-from ._problem import FitProblem as FitProblem, NoiseOptions as NoiseOptions, model_inputs as model_inputs
+from ._map import (
+    MapResult as MapResult,
+    fit_map as fit_map,
+    laplace_covariance as laplace_covariance,
+    log_density as log_density,
+)
 from ._prior import build_priors as build_priors, first_look_stiffness as first_look_stiffness
+from ._problem import (
+    FitProblem as FitProblem,
+    NoiseOptions as NoiseOptions,
+    build_problem as build_problem,
+    check_fittable as check_fittable,
+    model_inputs as model_inputs,
+)

@@ -1,14 +1,90 @@
 """Maximum a posteriori fit: optimistix Levenberg–Marquardt from several starts, then a
-Laplace approximation of the posterior at the optimum."""
+Laplace approximation of the posterior at the optimum.
+
+The functions here are module-level and jitted on (problem, u): compiled once per shape of
+problem, reused for every campaign of that shape.
+"""
 
 from dataclasses import dataclass, field
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from ._problem import FitProblem
+from ._problem import NOISE_PRIOR_SD, RHO_PRIOR_SD, FitProblem
+
+_RHO_MAX = 0.995
+
+
+def _lm_residuals(u_phys, args):
+    problem, u_noise = args
+    white, _, _ = problem.profile(jnp.concatenate([u_phys, u_noise]))
+    return jnp.concatenate(white + [problem.prior_residuals(u_phys)])
+
+
+@eqx.filter_jit
+def _solve(problem: FitProblem, u_phys, u_noise, solver, max_steps: int):
+    sol = optx.least_squares(_lm_residuals, solver, u_phys, args=(problem, u_noise),
+                             max_steps=max_steps, throw=False)
+    return sol.value, sol.result, sol.stats["num_steps"]
+
+
+@eqx.filter_jit
+def log_density(problem: FitProblem, u):
+    return problem.log_density(u)
+
+
+@eqx.filter_jit
+def _noise_update(problem: FitProblem, u):
+    """Closed-form noise update at u: ρ_r = lag-1 autocorrelation of the residuals (AR(1)
+    runs), σ_r² = mean innovation², s_r² = σ_r² − floor_r² (kept positive)."""
+    log_s, logits = [], []
+    for r, e in enumerate(problem.residuals(u)):
+        rho = 0.0
+        if problem.ar1[r]:
+            e0 = e - jnp.mean(e)
+            rho = jnp.clip(jnp.dot(e0[1:], e0[:-1]) / jnp.maximum(jnp.dot(e0, e0), 1e-300), 0.01, _RHO_MAX)
+            logits.append(jnp.log(rho) - jnp.log1p(-rho))
+        var = jnp.mean((e[1:] - rho * e[:-1]) ** 2)
+        floor2 = problem.floors[r] ** 2
+        log_s.append(0.5 * jnp.log(jnp.maximum(var - floor2, jnp.maximum(1e-4 * jnp.maximum(floor2, var), 1e-30))))
+    return jnp.stack(log_s + logits)
+
+
+@eqx.filter_jit
+def _physics_jacobian(problem: FitProblem, u):
+    n = problem.n_physics
+    return jax.jacfwd(lambda a: _lm_residuals(a, (problem, u[n:])))(u[:n])
+
+
+def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
+    """Laplace covariance of u at the MAP: Gauss–Newton (JᵀJ)⁻¹ for the physics (J of the
+    whitened residuals and prior pseudo-residuals), the asymptotic variances for the noise
+    parameters (var log σ ≈ 1/2N, var ρ ≈ (1 − ρ²)/N, mapped to s and logit ρ and capped by
+    their priors). The two blocks are taken as uncorrelated, as they are asymptotically."""
+    u = np.asarray(u)
+    n = problem.n_physics
+    jac = np.asarray(_physics_jacobian(problem, jnp.asarray(u)))
+    cov = np.zeros((problem.dim, problem.dim))
+    cov[:n, :n] = np.linalg.pinv(jac.T @ jac)
+    sigma, rho = (np.asarray(x) for x in problem.noise_values(jnp.asarray(u)))
+    floors = np.asarray(problem.floors)
+    counts = np.array([len(y) for y in problem.y], float)
+    s2 = np.exp(2 * u[n:n + problem.n_runs])
+    var_log_s = (sigma**2 / np.maximum(s2, 1e-300)) ** 2 / (2 * counts)
+    var_log_s = np.minimum(var_log_s, NOISE_PRIOR_SD**2)
+    for r in range(problem.n_runs):
+        cov[n + r, n + r] = var_log_s[r]
+    k = n + problem.n_runs
+    for r in np.flatnonzero(problem.ar1):
+        p = rho[r]
+        var = (1 - p**2) / (counts[r] * max(p * (1 - p), 1e-12) ** 2)
+        cov[k, k] = min(var, RHO_PRIOR_SD**2)
+        k += 1
+    del floors
+    return cov
 
 
 @dataclass(frozen=True, eq=False)
@@ -16,6 +92,7 @@ class MapResult:
     """The MAP point and its Laplace approximation (in the unconstrained space u)."""
 
     problem: FitProblem
+    run_names: tuple
     u: np.ndarray  # unconstrained MAP, length problem.dim
     cov: np.ndarray  # Laplace covariance of u
     values: dict  # every model parameter at the MAP, SI
@@ -23,6 +100,10 @@ class MapResult:
     converged: bool
     message: str  # optimistix's result for the chosen start
     starts: list = field(default_factory=list)  # (log_density, message) per start
+
+    @property
+    def names(self) -> list[str]:
+        return self.problem.names(self.run_names)
 
     @property
     def sd(self) -> np.ndarray:
@@ -34,86 +115,50 @@ class MapResult:
         return [{k: np.asarray(v) for k, v in c.items()} for c in comps]
 
 
-def _lm_residuals(problem: FitProblem):
-    def fn(u_phys, u_noise):
-        white, _, _ = problem.profile(jnp.concatenate([u_phys, u_noise]))
-        return jnp.concatenate(white + [problem.prior_residuals(u_phys)])
-
-    return fn
-
-
-def _update_noise(problem: FitProblem, u) -> np.ndarray:
-    """Closed-form noise update from the residuals at u: ρ_r = lag-1 autocorrelation,
-    σ_r² = mean innovation², s_r² = σ_r² − floor_r² (kept positive)."""
-    values = problem.full_values(jnp.asarray(u))
-    preds = problem.model.predict(values, problem.inputs)
-    log_s, logits = [], []
-    for r, (y, f) in enumerate(zip(problem.y, preds)):
-        e = np.asarray(y - f)
-        rho = 0.0
-        if problem.ar1[r]:
-            e0 = e - e.mean()
-            rho = float(np.clip(np.dot(e0[1:], e0[:-1]) / max(np.dot(e0, e0), 1e-300), 0.01, 0.995))
-            logits.append(np.log(rho / (1 - rho)))
-        innov = e[1:] - rho * e[:-1]
-        var = float(np.mean(innov**2))
-        floor2 = problem.floors[r] ** 2
-        log_s.append(0.5 * np.log(max(var - floor2, 1e-4 * max(floor2, var), 1e-30)))
-    return np.asarray(log_s + logits)
-
-
-def _laplace(problem: FitProblem, u) -> np.ndarray:
-    """Covariance = inverse of the negative Hessian of the log-density at u; falls back to
-    Gauss–Newton for the physics if that Hessian is not positive definite."""
-    h = np.asarray(jax.hessian(problem.log_density)(jnp.asarray(u)))
-    h = 0.5 * (h + h.T)
+def _message(result) -> str:
+    if result == optx.RESULTS.successful:
+        return "successful"
     try:
-        np.linalg.cholesky(-h)
-        return np.linalg.inv(-h)
-    except np.linalg.LinAlgError:
-        fn = _lm_residuals(problem)
-        n = problem.n_physics
-        jac = np.asarray(jax.jacfwd(lambda a: fn(a, jnp.asarray(u[n:])))(jnp.asarray(u[:n])))
-        cov = np.diag(np.full(problem.dim, 1e-2))
-        cov[:n, :n] = np.linalg.pinv(jac.T @ jac)
-        return cov
+        return str(optx.RESULTS[result])
+    except Exception:  # noqa: BLE001 - the code is what we have
+        return f"optimistix result {result}"
 
 
-def fit_map(problem: FitProblem, *, n_starts: int = 4, seed: int = 0, max_steps: int = 300,
-            noise_passes: int = 3, rtol: float = 1e-8, atol: float = 1e-10) -> MapResult:
+def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int = 0,
+            max_steps: int = 300, noise_passes: int = 3, rtol: float = 1e-8,
+            atol: float = 1e-10) -> MapResult:
     """MAP by Levenberg–Marquardt from ``n_starts`` starts (the prior centre, then draws around
-    it); between passes the noise level and AR(1) coefficient are re-estimated in closed form."""
+    it). The first pass treats the noise as iid (with ρ near 1 the whitened residuals are
+    increments, and a fit from far away can match the loop's shape but not its level);
+    between passes the noise level and AR(1) coefficient are re-estimated in closed form."""
+    run_names = tuple(run_names or (f"run{i}" for i in range(problem.n_runs)))
     rng = np.random.default_rng(seed)
     n = problem.n_physics
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
-    fn = _lm_residuals(problem)
-    log_density = jax.jit(problem.log_density)
-
-    starts = [problem.prior_mean.copy()]
+    prior_mean, prior_sd = np.asarray(problem.prior_mean), np.asarray(problem.prior_sd)
+    starts = [prior_mean.copy()]
     for _ in range(n_starts - 1):
-        starts.append(problem.prior_mean + 0.7 * problem.prior_sd * rng.standard_normal(n))
+        starts.append(prior_mean + 0.7 * prior_sd * rng.standard_normal(n))
+    iid = jnp.asarray(np.concatenate([np.asarray(problem.noise_prior_mean), np.full(problem.n_ar1, -30.0)]))
 
     best, records = None, []
     for start in starts:
-        # The first pass is iid (ρ → 0: logit −30): with ρ near 1 the whitened residuals are
-        # increments and a fit from far away can match the loop's shape but not its level.
-        iid = np.concatenate([problem.noise_prior_mean, np.full(problem.n_ar1, -30.0)])
-        u_phys, u_noise, message = jnp.asarray(start), jnp.asarray(iid), ""
-        ok = True
+        u_phys, u_noise = jnp.asarray(start), iid
+        ok, message = True, ""
         for _ in range(noise_passes):
-            sol = optx.least_squares(fn, solver, u_phys, args=u_noise, max_steps=max_steps, throw=False)
-            ok = sol.result == optx.RESULTS.successful
-            message = "successful" if ok else optx.RESULTS[sol.result] if hasattr(optx.RESULTS, "__getitem__") else str(sol.result)
-            u_phys = sol.value
-            u_noise = jnp.asarray(_update_noise(problem, np.concatenate([np.asarray(u_phys), np.asarray(u_noise)])))
-        u = np.concatenate([np.asarray(u_phys), np.asarray(u_noise)])
-        ld = float(log_density(jnp.asarray(u)))
+            u_phys, result, _ = _solve(problem, u_phys, u_noise, solver, max_steps)
+            ok = bool(result == optx.RESULTS.successful)
+            message = _message(result)
+            u_noise = _noise_update(problem, jnp.concatenate([u_phys, u_noise]))
+        u = jnp.concatenate([u_phys, u_noise])
+        ld = float(log_density(problem, u))
         records.append((ld, message))
         if np.isfinite(ld) and (best is None or ld > best[1]):
-            best = (u, ld, bool(ok), message)
+            best = (np.asarray(u), ld, ok, message)
     if best is None:
         raise RuntimeError("MAP failed from every start: " + "; ".join(m for _, m in records))
     u, ld, ok, message = best
-    cov = _laplace(problem, u)
-    return MapResult(problem=problem, u=u, cov=cov, values=problem.full_values(jnp.asarray(u)),
+    cov = laplace_covariance(problem, u)
+    values = {k: np.asarray(v) for k, v in problem.full_values(jnp.asarray(u)).items()}
+    return MapResult(problem=problem, run_names=run_names, u=u, cov=cov, values=values,
                      log_density=ld, converged=ok, message=message, starts=records)
