@@ -55,7 +55,7 @@ def _noise_update(problem: FitProblem, u):
 
 @eqx.filter_jit
 def _physics_jacobian(problem: FitProblem, u):
-    n = problem.n_physics
+    n = problem.n_nonlinear
     return jax.jacfwd(lambda a: _lm_residuals(a, (problem, u[n:])))(u[:n])
 
 
@@ -65,7 +65,7 @@ def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
     parameters (var log σ ≈ 1/2N, var ρ ≈ (1 − ρ²)/N, mapped to s and logit ρ and capped by
     their priors). The two blocks are taken as uncorrelated, as they are asymptotically."""
     u = np.asarray(u)
-    n = problem.n_physics
+    n = problem.n_nonlinear
     jac = np.asarray(_physics_jacobian(problem, jnp.asarray(u)))
     cov = np.zeros((problem.dim, problem.dim))
     cov[:n, :n] = np.linalg.pinv(jac.T @ jac)
@@ -111,7 +111,8 @@ class MapResult:
 
     def components(self) -> list[dict]:
         """Model components per run at the MAP (rad)."""
-        comps = self.problem.model.components(self.values, self.problem.inputs)
+        inputs = self.problem.corrected_inputs(jnp.asarray(self.u))
+        comps = self.problem.model.components(self.values, inputs)
         return [{k: np.asarray(v) for k, v in c.items()} for c in comps]
 
 
@@ -133,7 +134,7 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     between passes the noise level and AR(1) coefficient are re-estimated in closed form."""
     run_names = tuple(run_names or (f"run{i}" for i in range(problem.n_runs)))
     rng = np.random.default_rng(seed)
-    n = problem.n_physics
+    n = problem.n_nonlinear
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
     prior_mean, prior_sd = np.asarray(problem.prior_mean), np.asarray(problem.prior_sd)
     starts = [prior_mean.copy()]

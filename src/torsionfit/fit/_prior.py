@@ -59,6 +59,7 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "speed_compliance_1": (0.0, 1.0 / v_max),
         "speed_compliance_2": (0.0, 1.0 / v_max**2),
         "torque_offset": (0.0, 0.05 * rated),
+        "friction_start": (0.0, 1.0),  # tanh-normal: z0 anywhere in (−1, 1)
     }
     out = {}
     for p in parameters:

@@ -6,9 +6,17 @@ leaves, the structure (model, parameter layout, AR(1) mask) is static. Functions
 (problem, u) are jitted once per *shape*: a second campaign with the same runs, lengths and
 model reuses the compiled code.
 
-Layout of the unconstrained vector u: the non-linear physics (one entry per element, in
-``model.parameters()`` order), then log s_r per run (noise above the encoder floor), then
-logit ρ_r for each run with AR(1) noise. The linear parameters (per-run offsets, drift,
+Layout of the unconstrained vector u — the *non-linear block*: the physics (one entry per
+element, in ``model.parameters()`` order), then the latent torque knots of each hysteresis
+run; then log s_r per run (noise above the encoder floor), then logit ρ_r for each run with
+AR(1) noise.
+
+The true drive torque is latent: the model is driven by the denoised measured torque plus a
+continuous piecewise-linear correction with knots at the turning points and the ends of each
+run, each knot with a normal prior whose sd is the smoother's uncertainty there. A ramp's
+fitted line is never exact, and where the loop is steep (lost motion closing near zero
+torque, the friction transition after a reversal) its small, ramp-long error would
+otherwise be read as physics with false confidence. The linear parameters (per-run offsets, drift,
 kinematic harmonics) are not in u: for any u they are solved by weighted least squares
 (variable projection) and, in the log-density, marginalised analytically under a flat
 prior, so the sampler sees only the non-linear physics.
@@ -25,6 +33,7 @@ from .. import model as m
 from .._errors import InputError
 from ..io import Campaign, HysteresisRun
 from . import _transform as tr
+from .._segments import monotone_segments
 from ._denoise import denoise_torque
 from ._prior import build_priors
 
@@ -39,18 +48,22 @@ class NoiseOptions:
 
     ar1: bool | None = None
     student_t_dof: float | None = None  # None: Gaussian; a number: Student-t with that many dof
-    denoise_fraction: float = 0.125  # torque smoother half-width, fraction of each monotone segment
+    denoise_fraction: float | None = None  # smoother half-width per segment (None: by GCV)
 
 
-def model_inputs(campaign: Campaign, denoise_fraction: float = 0.125) -> list:
-    """Per-run model inputs; hysteresis runs are driven by the denoised measured torque."""
-    out = []
+def model_inputs(campaign: Campaign, denoise_fraction: float | None = None, return_variance: bool = False):
+    """Per-run model inputs; hysteresis runs are driven by the denoised measured torque. With
+    ``return_variance`` also the variance of that torque per sample (zeros for TE runs)."""
+    out, variances = [], []
     for run in campaign.runs:
         if isinstance(run, HysteresisRun):
-            out.append(m.hysteresis_input(run.time_s, denoise_torque(run.torque_Nm, denoise_fraction)))
+            tau, var = denoise_torque(run.torque_Nm, denoise_fraction, return_variance=True)
+            out.append(m.hysteresis_input(run.time_s, tau))
+            variances.append(var)
         else:
             out.append(m.te_input(run.output_angle_rad, run.torque_Nm, run.speed_rpm, run.direction, run.time_s))
-    return out
+            variances.append(np.zeros(len(run)))
+    return (out, variances) if return_variance else out
 
 
 def observed(campaign: Campaign) -> list[np.ndarray]:
@@ -83,7 +96,9 @@ class FitProblem(eqx.Module):
     student_t_dof: float | None = eqx.field(static=True)
     inputs: list
     y: list
+    torque_var: list  # variance of the denoised drive torque per sample, N·m² (0 for TE runs)
     design: list
+    knot_basis: list  # per run: (N, K_r) hat functions of the latent torque correction
     floors: jnp.ndarray
     prior_mean: jnp.ndarray
     prior_sd: jnp.ndarray
@@ -95,8 +110,18 @@ class FitProblem(eqx.Module):
         return len(self.ar1)
 
     @property
-    def n_physics(self) -> int:
+    def n_model(self) -> int:
+        """Entries of u that are model parameters."""
         return int(sum(p.size for p in self.physics))
+
+    @property
+    def n_knots(self) -> int:
+        return int(sum(b.shape[1] for b in self.knot_basis))
+
+    @property
+    def n_nonlinear(self) -> int:
+        """The non-linear block: model parameters and latent torque knots."""
+        return self.n_model + self.n_knots
 
     @property
     def n_linear(self) -> int:
@@ -108,7 +133,7 @@ class FitProblem(eqx.Module):
 
     @property
     def dim(self) -> int:
-        return self.n_physics + self.n_runs + self.n_ar1
+        return self.n_nonlinear + self.n_runs + self.n_ar1
 
     # --- parameter layout ------------------------------------------------------------------
     def names(self, run_names) -> list[str]:
@@ -116,12 +141,14 @@ class FitProblem(eqx.Module):
         out = []
         for p in self.physics:
             out += [p.name] if p.size == 1 else [f"{p.name}[{i}]" for i in range(p.size)]
+        for r, b in zip(run_names, self.knot_basis):
+            out += [f"torque_knot[{r}][{k}]" for k in range(b.shape[1])]
         out += [f"noise[{r}]" for r in run_names]
         out += [f"ar1[{r}]" for r, a in zip(run_names, self.ar1) if a]
         return out
 
     def physics_values(self, u_phys) -> dict:
-        """Constrained physics parameters from the first ``n_physics`` entries of u."""
+        """Constrained model parameters from the first ``n_model`` entries of u."""
         out, i = {}, 0
         for p in self.physics:
             v = tr.forward(p.constraint, u_phys[i:i + p.size])
@@ -143,43 +170,77 @@ class FitProblem(eqx.Module):
 
     def noise_values(self, u):
         """(σ_r innovation sd per run, ρ_r per run) from u; σ_r = √(s_r² + floor_r²)."""
-        s = jnp.exp(u[self.n_physics:self.n_physics + self.n_runs])
+        s = jnp.exp(u[self.n_nonlinear:self.n_nonlinear + self.n_runs])
         sigma = jnp.sqrt(s**2 + self.floors**2)
         rho = jnp.zeros(self.n_runs, dtype=s.dtype)
         if self.n_ar1:
-            logits = u[self.n_physics + self.n_runs:]
+            logits = u[self.n_nonlinear + self.n_runs:]
             rho = rho.at[np.flatnonzero(self.ar1)].set(jax.nn.sigmoid(logits))
         return sigma, rho
 
     # --- predictions and residuals -----------------------------------------------------------
-    def nonlinear_prediction(self, u_phys):
+    def corrected_inputs(self, u_nl):
+        """Model inputs with the latent torque correction of u applied."""
+        out, i = [], self.n_model
+        for inp, basis in zip(self.inputs, self.knot_basis):
+            k = basis.shape[1]
+            if k:
+                inp = m.HysteresisInput(inp.time_s, inp.torque_Nm + basis @ u_nl[i:i + k])
+            out.append(inp)
+            i += k
+        return out
+
+    def nonlinear_prediction(self, u_nl):
         """Predicted angle per run with every linear parameter at zero."""
         zero = self.linear_values(jnp.zeros(self.n_linear))
-        return self.model.predict({**self.physics_values(u_phys), **zero}, self.inputs)
+        return self.model.predict({**self.physics_values(u_nl), **zero}, self.corrected_inputs(u_nl))
 
     @staticmethod
-    def whiten(x, sigma, rho):
-        """AR(1) innovations of x scaled by σ (Prais–Winsten first sample); vectors or columns."""
+    def whiten(x, scale, rho):
+        """AR(1) innovations of x divided by the per-sample scale (Prais–Winsten first
+        sample); x a vector or a matrix of columns, scale a scalar or a vector."""
         first = x[:1] * jnp.sqrt(1.0 - rho**2)
         rest = x[1:] - rho * x[:-1]
-        return jnp.concatenate([first, rest], axis=0) / sigma
+        innov = jnp.concatenate([first, rest], axis=0)
+        return innov / (scale[:, None] if jnp.ndim(scale) and innov.ndim == 2 else scale)
 
-    def profile(self, u):
+    def sample_scales(self, u, preds):
+        """Innovation sd per sample: √(σ_r² + (dθ̂/dτ̂)²·var τ̂). The second term carries the
+        error of the denoised drive torque into the angle (errors in variables): it matters
+        where the loop is steep, e.g. while lost motion closes around zero torque."""
+        sigma, _ = self.noise_values(u)
+        scales = []
+        for r, (f, inp, var) in enumerate(zip(preds, self.inputs, self.torque_var)):
+            if isinstance(inp, m.HysteresisInput) and f.shape[0] > 2:
+                tau = inp.torque_Nm
+                d_f = jnp.concatenate([f[1:2] - f[:1], f[2:] - f[:-2], f[-1:] - f[-2:-1]])
+                d_t = jnp.concatenate([tau[1:2] - tau[:1], tau[2:] - tau[:-2], tau[-1:] - tau[-2:-1]])
+                eps = 1e-6 * (jnp.max(jnp.abs(tau)) + 1e-12)
+                slope = d_f * d_t / (d_t**2 + eps**2)
+                scales.append(jnp.sqrt(sigma[r] ** 2 + slope**2 * var))
+            else:
+                scales.append(sigma[r] * jnp.ones_like(f))
+        return scales
+
+    def profile(self, u, return_scales: bool = False):
         """Solve the linear parameters for u: (whitened residuals per run, β, log det A)."""
-        sigma, rho = self.noise_values(u)
-        preds = self.nonlinear_prediction(u[:self.n_physics])
-        we = [self.whiten(y - f, sigma[r], rho[r]) for r, (y, f) in enumerate(zip(self.y, preds))]
+        _, rho = self.noise_values(u)
+        preds = self.nonlinear_prediction(u[:self.n_nonlinear])
+        scales = self.sample_scales(u, preds)
+        we = [self.whiten(y - f, scales[r], rho[r]) for r, (y, f) in enumerate(zip(self.y, preds))]
         if not self.n_linear:
-            return we, jnp.zeros(0), jnp.asarray(0.0)
-        wx = [self.whiten(x, sigma[r], rho[r]) for r, x in enumerate(self.design)]
+            out = (we, jnp.zeros(0), jnp.asarray(0.0))
+            return out + (scales,) if return_scales else out
+        wx = [self.whiten(x, scales[r], rho[r]) for r, x in enumerate(self.design)]
         a = sum(w.T @ w for w in wx)
         b = sum(w.T @ v for w, v in zip(wx, we))
         a = a + 1e-10 * jnp.trace(a) / self.n_linear * jnp.eye(self.n_linear)
         beta = jnp.linalg.solve(a, b)
         white = [v - w @ beta for v, w in zip(we, wx)]
-        return white, beta, jnp.linalg.slogdet(a)[1]
+        out = (white, beta, jnp.linalg.slogdet(a)[1])
+        return out + (scales,) if return_scales else out
 
-    def _pointwise(self, white, sigma, rho):
+    def _pointwise(self, white, scales, rho):
         out = []
         for r, w in enumerate(white):
             if self.student_t_dof:
@@ -188,33 +249,33 @@ class FitProblem(eqx.Module):
                       - 0.5 * jnp.log(nu * jnp.pi) - (nu + 1) / 2 * jnp.log1p(w**2 / nu))
             else:
                 ll = -0.5 * w**2 - 0.5 * jnp.log(2 * jnp.pi)
-            ll = ll - jnp.log(sigma[r])
+            ll = ll - jnp.log(scales[r])
             out.append(ll.at[0].add(0.5 * jnp.log(1.0 - rho[r] ** 2)))
         return out
 
     def pointwise_log_likelihood(self, u):
         """Per-sample conditional log densities (list per run), linear parts at their optimum."""
-        sigma, rho = self.noise_values(u)
-        white, _, _ = self.profile(u)
-        return self._pointwise(white, sigma, rho)
+        _, rho = self.noise_values(u)
+        white, _, _, scales = self.profile(u, return_scales=True)
+        return self._pointwise(white, scales, rho)
 
     def log_prior(self, u):
         """Normal in u — log-normal / normal on the natural scale, whose log-Jacobian that
         includes — for physics and noise levels; ρ logit-normal(0, 1.5)."""
-        z = (u[:self.n_physics] - self.prior_mean) / self.prior_sd
+        z = (u[:self.n_nonlinear] - self.prior_mean) / self.prior_sd
         lp = -0.5 * jnp.sum(z**2)
-        zs = (u[self.n_physics:self.n_physics + self.n_runs] - self.noise_prior_mean) / NOISE_PRIOR_SD
+        zs = (u[self.n_nonlinear:self.n_nonlinear + self.n_runs] - self.noise_prior_mean) / NOISE_PRIOR_SD
         lp = lp - 0.5 * jnp.sum(zs**2)
         if self.n_ar1:
-            lp = lp - 0.5 * jnp.sum((u[self.n_physics + self.n_runs:] / RHO_PRIOR_SD) ** 2)
+            lp = lp - 0.5 * jnp.sum((u[self.n_nonlinear + self.n_runs:] / RHO_PRIOR_SD) ** 2)
         return lp
 
     def log_density(self, u):
         """Log posterior of u (up to a constant), linear parameters marginalised (flat prior).
         Never NaN: a non-finite value becomes −inf."""
-        sigma, rho = self.noise_values(u)
-        white, _, logdet = self.profile(u)
-        ll = sum(jnp.sum(x) for x in self._pointwise(white, sigma, rho))
+        _, rho = self.noise_values(u)
+        white, _, logdet, scales = self.profile(u, return_scales=True)
+        ll = sum(jnp.sum(x) for x in self._pointwise(white, scales, rho))
         lp = ll - 0.5 * logdet + self.log_prior(u)
         return jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
 
@@ -225,11 +286,11 @@ class FitProblem(eqx.Module):
     def full_values(self, u) -> dict:
         """Every model parameter (physics + linear at their optimum), SI."""
         _, beta, _ = self.profile(u)
-        return {**self.physics_values(u[:self.n_physics]), **self.linear_values(beta)}
+        return {**self.physics_values(u[:self.n_nonlinear]), **self.linear_values(beta)}
 
     def residuals(self, u) -> list:
         """Raw residuals y − prediction per run (rad), linear parts at their optimum."""
-        preds = self.model.predict(self.full_values(u), self.inputs)
+        preds = self.model.predict(self.full_values(u), self.corrected_inputs(u))
         return [y - f for y, f in zip(self.y, preds)]
 
 
@@ -239,6 +300,7 @@ def _design_matrices(model, inputs, physics, linear, prior_mean, y):
     if not n_lin:
         return [jnp.zeros((len(v), 0)) for v in y]
     shell = FitProblem(model, physics, linear, tuple(False for _ in y), None, inputs, y,
+                       [jnp.zeros(len(v)) for v in y], [jnp.zeros((len(v), 0)) for v in y],
                        [jnp.zeros((len(v), 0)) for v in y], jnp.zeros(len(y)), prior_mean,
                        jnp.ones_like(prior_mean), jnp.zeros(len(y)))
     phys = shell.physics_values(prior_mean)
@@ -249,7 +311,21 @@ def _design_matrices(model, inputs, physics, linear, prior_mean, y):
     return [jnp.asarray(j) for j in jax.jacfwd(lin_pred)(jnp.zeros(n_lin))]
 
 
-def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOptions = NoiseOptions()) -> FitProblem:
+def _knot_indices(torque_Nm) -> np.ndarray:
+    """Turning points of a torque series and its two ends (sample indices)."""
+    _, segments = monotone_segments(torque_Nm)
+    return np.unique([0, len(torque_Nm) - 1] + [s[0] for s in segments] + [s[1] for s in segments])
+
+
+def _hat_basis(n: int, knots: np.ndarray) -> np.ndarray:
+    """(n, K) piecewise-linear hat functions on sample indices, one per knot."""
+    idx = np.arange(n)
+    eye = np.eye(len(knots))
+    return np.stack([np.interp(idx, knots, eye[j]) for j in range(len(knots))], axis=1)
+
+
+def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOptions = NoiseOptions(),
+                  latent_torque: bool = True) -> FitProblem:
     """The fitting problem for ``campaign`` under ``model``; InputError on unusable data."""
     kinds = tuple(r.kind for r in campaign.runs)
     if model.run_kinds != kinds:
@@ -261,15 +337,26 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
     priors = build_priors(params, campaign)
     prior_mean = jnp.asarray(np.concatenate([np.full(p.size, priors[p.name][0]) for p in physics]))
     prior_sd = jnp.asarray(np.concatenate([np.full(p.size, priors[p.name][1]) for p in physics]))
-    inputs = model_inputs(campaign, noise.denoise_fraction)
+    inputs, torque_var = model_inputs(campaign, noise.denoise_fraction, return_variance=True)
     y = [jnp.asarray(v) for v in observed(campaign)]
     floor = campaign.instrument.angle_floor_rad or 0.0
     ar1 = tuple(bool(len(r) >= AR1_MIN_SAMPLES) if noise.ar1 is None else bool(noise.ar1) for r in campaign.runs)
     # noise above the floor: log-normal around 1 % of the run's angle range (wide)
     ranges = np.array([max(float(np.ptp(np.asarray(v))), 1e-9) for v in y])
     design = _design_matrices(model, inputs, physics, linear, prior_mean, y)
+    bases, knot_sd = [], []
+    for run, inp, var in zip(campaign.runs, inputs, torque_var):
+        if isinstance(run, HysteresisRun) and latent_torque:
+            knots = _knot_indices(run.torque_Nm)
+            bases.append(jnp.asarray(_hat_basis(len(run), knots)))
+            knot_sd.append(np.sqrt(np.maximum(var[knots], 1e-12)))
+        else:
+            bases.append(jnp.zeros((len(run), 0)))
+    if knot_sd:
+        prior_mean = jnp.concatenate([prior_mean, jnp.zeros(sum(len(k) for k in knot_sd))])
+        prior_sd = jnp.concatenate([prior_sd, jnp.asarray(np.concatenate(knot_sd))])
     return FitProblem(
         model=model, physics=physics, linear=linear, ar1=ar1, student_t_dof=noise.student_t_dof,
-        inputs=inputs, y=y, design=design, floors=jnp.full(len(y), floor),
+        inputs=inputs, y=y, torque_var=[jnp.asarray(v) for v in torque_var], design=design, knot_basis=bases, floors=jnp.full(len(y), floor),
         prior_mean=prior_mean, prior_sd=prior_sd, noise_prior_mean=jnp.asarray(np.log(1e-2 * ranges)),
     )

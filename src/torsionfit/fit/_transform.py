@@ -13,6 +13,8 @@ def forward(constraint: str, u):
         return jnp.exp(u)
     if constraint == "unit_interval":
         return jax.nn.sigmoid(u)
+    if constraint == "signed_unit":
+        return jnp.tanh(u)
     if constraint == "real":
         return u
     raise ValueError(f"unknown constraint {constraint!r}")
@@ -24,6 +26,8 @@ def inverse(constraint: str, value):
         return jnp.log(value)
     if constraint == "unit_interval":
         return jnp.log(value) - jnp.log1p(-value)
+    if constraint == "signed_unit":
+        return jnp.arctanh(value)
     if constraint == "real":
         return value
     raise ValueError(f"unknown constraint {constraint!r}")
@@ -34,6 +38,8 @@ def log_jacobian(constraint: str, u):
         return u
     if constraint == "unit_interval":
         return jax.nn.log_sigmoid(u) + jax.nn.log_sigmoid(-u)
+    if constraint == "signed_unit":
+        return jnp.log1p(-jnp.tanh(u) ** 2)
     if constraint == "real":
         return jnp.zeros_like(u)
     raise ValueError(f"unknown constraint {constraint!r}")

@@ -45,6 +45,9 @@ class CampaignModel(eqx.Module):
     speed: SpeedDependence | None = None
     drift: bool = eqx.field(static=True, default=False)
     torque_offset: bool = eqx.field(static=True, default=False)
+    #: friction state at the start of each hysteresis run as a parameter (a run may start
+    #: anywhere in the unit's history); False: the friction module's fixed initial state
+    free_friction_start: bool = eqx.field(static=True, default=False)
     scan: ScanMethod = eqx.field(static=True, default="auto")
 
     def __check_init__(self):
@@ -69,6 +72,8 @@ class CampaignModel(eqx.Module):
             out += self.speed.parameters()
         if self.torque_offset:
             out += (Parameter("torque_offset", "real", "N·m", "torque-sensor offset"),)
+        if self.free_friction_start and self.n_hysteresis:
+            out += (Parameter("friction_start", "signed_unit", "1", "friction state z at the start of each hysteresis run", self.n_hysteresis),)
         if self.n_hysteresis:
             out += (
                 Parameter("angle_offset", "real", "rad", "θ_0 per hysteresis run", self.n_hysteresis, True),
@@ -87,7 +92,8 @@ class CampaignModel(eqx.Module):
         torque = data.torque_Nm
         if self.torque_offset:
             torque = torque - params["torque_offset"]
-        friction_torque = self.friction.friction_torque(params, torque, self.scan)
+        z0 = jnp.atleast_1d(params["friction_start"])[hyst_index] if self.free_friction_start else None
+        friction_torque = self.friction.friction_torque(params, torque, self.scan, z0)
         mesh = torque - friction_torque
 
         def spring_and_gap(t):

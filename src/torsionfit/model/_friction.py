@@ -16,7 +16,7 @@ class AbstractFriction(eqx.Module):
     def parameters(self) -> tuple[Parameter, ...]: ...
 
     @abc.abstractmethod
-    def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto"): ...
+    def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None): ...
 
 
 class DahlFriction(AbstractFriction):
@@ -34,14 +34,15 @@ class DahlFriction(AbstractFriction):
             Parameter("dahl_torque", "positive", "N·m", "torque change τ_d to saturate friction"),
         )
 
-    def state(self, params, torque_Nm, method: ScanMethod = "auto"):
-        """Friction state z per sample (dimensionless, in (−1, 1))."""
+    def state(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None):
+        """Friction state z per sample (dimensionless, in (−1, 1)); ``initial_state``
+        overrides the module's z at the first sample."""
         d_tau = jnp.diff(torque_Nm)
         a = jnp.exp(-jnp.abs(d_tau) / params["dahl_torque"])
         b = jnp.sign(d_tau) * (1.0 - a)
-        z0 = jnp.asarray(self.initial_state, dtype=a.dtype)
+        z0 = jnp.asarray(self.initial_state if initial_state is None else initial_state, dtype=a.dtype)
         z = affine_scan(a, b, z0, method)
         return jnp.concatenate([z0[None], z])
 
-    def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto"):
-        return params["friction_torque"] * self.state(params, torque_Nm, method)
+    def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None):
+        return params["friction_torque"] * self.state(params, torque_Nm, method, initial_state)

@@ -4,7 +4,7 @@ uses), its SI unit and its meaning. Components declare these; nothing here holds
 from dataclasses import dataclass
 from typing import Literal
 
-Constraint = Literal["positive", "real", "unit_interval"]
+Constraint = Literal["positive", "real", "unit_interval", "signed_unit"]  # signed_unit: (−1, 1)
 
 
 @dataclass(frozen=True)
