@@ -6,6 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import model as m
+from ..model import model_with_effects as truth_model
 from .._errors import InputError
 from ..io import Campaign, HysteresisRun, TransmissionErrorRun
 from ..units import ANGLE_UNITS
@@ -44,44 +45,6 @@ def five_step_protocol(peak_Nm, rate_Nm_per_s, sample_rate_Hz, cycles=1, dwell_s
     n = int(round(knots_t[-1] * sample_rate_Hz)) + 1
     time = np.linspace(0.0, knots_t[-1], n)
     return time, np.interp(time, knots_t, knots_tau)
-
-
-def truth_model(run_kinds, effects: dict, rated_torque_Nm: float, scan="auto") -> m.CampaignModel:
-    """The model structure a bench's ``[effects]`` describe (base model + extensions)."""
-    compliance = m.LinearCompliance()
-    nonlin = effects.get("stiffness_nonlinearity")
-    if nonlin in (True, "three_segment"):
-        compliance = m.ThreeSegmentCompliance()
-    elif nonlin == "power_law":
-        compliance = m.PowerLawCompliance()
-    elif nonlin not in (None, False):
-        raise InputError(f"[effects].stiffness_nonlinearity: expected 'three_segment' or 'power_law', got {nonlin!r}")
-    asym = effects.get("asymmetry")
-    if asym:
-        width = asym.get("switch_width_Nm", 0.05 * rated_torque_Nm) if isinstance(asym, dict) else 0.05 * rated_torque_Nm
-        compliance = m.AsymmetricCompliance(compliance, switch_width_Nm=float(width))
-    kin = effects.get("kinematic_error")
-    kinematic = None
-    if kin:
-        orders = kin.get("orders") if isinstance(kin, dict) else kin
-        if not isinstance(orders, list) or not all(isinstance(o, int) and o > 0 for o in orders):
-            raise InputError(f"[effects].kinematic_error: expected a list of positive integer orders, got {kin!r}")
-        kinematic = m.KinematicHarmonics(orders=tuple(orders))
-    sp = effects.get("speed_dependence")
-    speed = None
-    if sp:
-        opts = sp if isinstance(sp, dict) else {}
-        speed = m.SpeedDependence(viscous=bool(opts.get("viscous", True)), compliance_order=int(opts.get("compliance_order", 0)))
-    return m.CampaignModel(
-        run_kinds=tuple(run_kinds),
-        compliance=compliance,
-        creep=m.Creep() if effects.get("rate_dependence") else None,
-        kinematic=kinematic,
-        speed=speed,
-        drift=bool(effects.get("thermal_drift")),
-        torque_offset=bool(effects.get("torque_offset")),
-        scan=scan,
-    )
 
 
 def _complete_truth(model: m.CampaignModel, truth: dict, where: str) -> dict:

@@ -15,6 +15,7 @@ from ._compliance import (
     ThreeSegmentCompliance as ThreeSegmentCompliance,
 )
 from ._creep import Creep as Creep
+from ._effects import model_with_effects as model_with_effects
 from ._friction import AbstractFriction as AbstractFriction, DahlFriction as DahlFriction
 from ._inputs import (
     HysteresisInput as HysteresisInput,

@@ -1,0 +1,50 @@
+"""Switching model extensions on by name (the effects catalog's names, DESIGN §3)."""
+
+from .._errors import InputError
+from ._campaign_model import CampaignModel
+from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, ThreeSegmentCompliance
+from ._creep import Creep
+from ._kinematic import KinematicHarmonics
+from ._speed import SpeedDependence
+
+
+def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="auto", free_friction_start: bool = False) -> CampaignModel:
+    """The base model plus the extensions named in ``effects`` (the catalog names of
+    DESIGN §3: ``stiffness_nonlinearity``, ``rate_dependence``, ``kinematic_error``,
+    ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``), as a bench
+    file's ``[effects]`` table or a user's switches give them."""
+    compliance = LinearCompliance()
+    nonlin = effects.get("stiffness_nonlinearity")
+    if nonlin in (True, "three_segment"):
+        compliance = ThreeSegmentCompliance()
+    elif nonlin == "power_law":
+        compliance = PowerLawCompliance()
+    elif nonlin not in (None, False):
+        raise InputError(f"[effects].stiffness_nonlinearity: expected 'three_segment' or 'power_law', got {nonlin!r}")
+    asym = effects.get("asymmetry")
+    if asym:
+        width = asym.get("switch_width_Nm", 0.05 * rated_torque_Nm) if isinstance(asym, dict) else 0.05 * rated_torque_Nm
+        compliance = AsymmetricCompliance(compliance, switch_width_Nm=float(width))
+    kin = effects.get("kinematic_error")
+    kinematic = None
+    if kin:
+        orders = kin.get("orders") if isinstance(kin, dict) else kin
+        if not isinstance(orders, list) or not all(isinstance(o, int) and o > 0 for o in orders):
+            raise InputError(f"[effects].kinematic_error: expected a list of positive integer orders, got {kin!r}")
+        kinematic = KinematicHarmonics(orders=tuple(orders))
+    sp = effects.get("speed_dependence")
+    speed = None
+    if sp:
+        opts = sp if isinstance(sp, dict) else {}
+        speed = SpeedDependence(viscous=bool(opts.get("viscous", True)), compliance_order=int(opts.get("compliance_order", 0)))
+    return CampaignModel(
+        free_friction_start=free_friction_start,
+        run_kinds=tuple(run_kinds),
+        compliance=compliance,
+        creep=Creep() if effects.get("rate_dependence") else None,
+        kinematic=kinematic,
+        speed=speed,
+        drift=bool(effects.get("thermal_drift")),
+        torque_offset=bool(effects.get("torque_offset")),
+        scan=scan,
+    )
