@@ -39,6 +39,57 @@ def _cmd_metrics(args) -> int:
     return 0
 
 
+def _parse_effects(items) -> dict:
+    """``--with NAME`` or ``--with NAME=VALUE`` (VALUE in TOML, as in a bench file's [effects])."""
+    import tomllib
+
+    from .bench import EFFECTS
+
+    effects = {}
+    for item in items or []:
+        name, _, value = item.partition("=")
+        name = name.strip()
+        if name not in EFFECTS or name == "encoder_ripple":
+            known = ", ".join(e for e in EFFECTS if e != "encoder_ripple")
+            raise InputError(f"--with {item!r}: unknown effect {name!r}; expected one of {known}")
+        if not value:
+            effects[name] = True
+            continue
+        try:
+            effects[name] = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            raise InputError(f"--with {item!r}: value {value!r} is not a TOML value (e.g. [1, 2, 39] or {{viscous = true}})") from None
+    return effects
+
+
+def _cmd_fit(args) -> int:
+    from .fit import NoiseOptions
+    from .io import load_campaign
+    from .report import FitOptions, fit_campaign, summary_table, write_fit
+
+    campaign = load_campaign(args.campaign)
+    ar1 = {"auto": None, "on": True, "off": False}[args.ar1]
+    out = Path(args.output)
+    options = FitOptions(
+        effects=_parse_effects(args.with_),
+        noise=NoiseOptions(ar1=ar1, student_t_dof=args.student_t),
+        sampler=args.sampler,
+        n_walkers=args.walkers,
+        max_steps=args.max_steps,
+        progress=not args.no_progress,
+        backend_path=str(out / "chain.h5") if args.resume or args.save_chain else None,
+        resume=args.resume,
+    )
+    fit = fit_campaign(campaign, options, seed=args.seed)
+    doc = write_fit(fit, out)
+    from .plots import write_fit_figures
+
+    write_fit_figures(fit, out / "figures")
+    print(summary_table(doc))
+    print(f"wrote {out / 'fit.json'}" + (f", {out / 'posterior.nc'}" if fit.tree is not None else "") + f", {out / 'figures'}/")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="torsionfit",
@@ -61,6 +112,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--t2-Nm", type=float, default=None, help="catalog knee T2 (default 0.75·T_r)")
     p.add_argument("--seed", type=int, default=None, help="unused: metrics are deterministic")
     p.set_defaults(func=_cmd_metrics)
+
+    p = sub.add_parser("fit", help="fit the model: stiffness with uncertainty, its three parts, fit.json")
+    p.add_argument("campaign", type=Path, help="campaign manifest (TOML)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--with", dest="with_", action="append", metavar="EFFECT[=VALUE]",
+                   help="switch a model extension on by hand (repeatable), e.g. --with rate_dependence "
+                        "--with 'kinematic_error=[1, 2, 39]' --with 'speed_dependence={viscous = true, compliance_order = 2}'")
+    p.add_argument("--sampler", choices=("emcee", "laplace"), default="emcee",
+                   help="emcee posterior (default) or the MAP's Laplace approximation (fast screening)")
+    p.add_argument("--walkers", type=int, default=None, help="emcee walkers (default max(32, 2·dim+2))")
+    p.add_argument("--max-steps", type=int, default=20_000, help="cap on emcee steps; reaching it gives converged: false")
+    p.add_argument("--ar1", choices=("auto", "on", "off"), default="auto", help="AR(1) residuals (auto: runs of ≥ 200 samples)")
+    p.add_argument("--student-t", type=float, default=None, metavar="DOF", help="Student-t likelihood with DOF degrees of freedom")
+    p.add_argument("--save-chain", action="store_true", help="keep the emcee chain in OUTPUT/chain.h5")
+    p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUTPUT/chain.h5")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_fit)
     return parser
 
 

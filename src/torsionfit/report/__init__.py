@@ -1,0 +1,12 @@
+"""From a fitted model to the numbers and files a user reads: derived metrics, fit.json."""
+
+from ._derived import DerivedMetrics as DerivedMetrics, MetricSpec as MetricSpec, derived_metrics_for as derived_metrics_for
+from ._pipeline import (
+    CampaignFit as CampaignFit,
+    FitOptions as FitOptions,
+    fit_campaign as fit_campaign,
+    fit_json as fit_json,
+    summarise as summarise,
+    summary_table as summary_table,
+    write_fit as write_fit,
+)

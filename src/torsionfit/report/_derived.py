@@ -1,0 +1,170 @@
+"""Catalog metrics from the model (DESIGN §1.4), for any parameter draw: the fitted model is
+run through the paper's five-step protocol and the TE conditions of the campaign, noise-free,
+and the metrics are read off exactly. Vectorised over draws.
+
+The loop is the fitted model's, at the slowest loading rate of the campaign (or T_r/100 per
+second without hysteresis runs), started at rest (friction state 0, no offset, no drift).
+"""
+
+import dataclasses
+from dataclasses import dataclass
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import model as m
+from ..bench import five_step_protocol
+from ..io import Campaign
+from ..units import ANGLE_UNITS, STIFFNESS_UNITS
+
+ARCMIN = ANGLE_UNITS["arcmin"]
+NM_PER_ARCMIN = STIFFNESS_UNITS["Nm/arcmin"]
+SAMPLES_PER_STEP = 2000
+
+
+@dataclass(frozen=True)
+class MetricSpec:
+    name: str
+    unit: str
+    description: str
+    condition: dict | None = None
+
+
+class _Protocol(eqx.Module):
+    """The noise-free five-step loop the metrics are read from."""
+
+    time_s: jnp.ndarray
+    torque_Nm: jnp.ndarray
+    i2: int = eqx.field(static=True)  # end of step 2 (τ = 0, coming down)
+    i3: int = eqx.field(static=True)  # end of step 3 (τ = −T_r)
+    i4: int = eqx.field(static=True)  # end of step 4 (τ = 0, going up)
+    i5: int = eqx.field(static=True)  # end of step 5 (τ = +T_r)
+
+
+def _protocol(rated, rate) -> _Protocol:
+    step_s = rated / rate
+    t, tau = five_step_protocol(rated, rate, SAMPLES_PER_STEP / step_s)
+    n = len(t) - 1
+    return _Protocol(jnp.asarray(t), jnp.asarray(tau), 2 * n // 5, 3 * n // 5, 4 * n // 5, n)
+
+
+def _single_run_params(params: dict, kind: str) -> dict:
+    """Parameters for a one-run model: per-run entries replaced by a run at rest."""
+    out = dict(params)
+    out["angle_offset"] = jnp.zeros(1)
+    out["friction_start"] = jnp.zeros(1)  # the protocol starts at rest
+    if "te_offset" in out:
+        out["te_offset"] = jnp.zeros(1)
+    if "drift" in out:
+        out["drift"] = jnp.zeros(1)
+    if "torque_offset" in out:
+        out["torque_offset"] = jnp.asarray(0.0)
+    if kind == "hysteresis":
+        out.pop("te_offset", None)
+        for k in ("kin_cos", "kin_sin", "viscous_friction", "speed_compliance_1", "speed_compliance_2"):
+            out.pop(k, None)
+    else:
+        out.pop("angle_offset", None)
+        out.pop("friction_start", None)
+    return out
+
+
+class DerivedMetrics(eqx.Module):
+    """Metric values (one vector per draw) of a campaign's model. Build with
+    :func:`derived_metrics_for`, evaluate with ``evaluate(values)`` or ``over_draws``."""
+
+    hyst_model: m.CampaignModel
+    te_model: m.CampaignModel | None
+    protocol: _Protocol
+    te_inputs: list
+    specs: tuple = eqx.field(static=True)
+    rated: float = eqx.field(static=True)
+    lost_motion_fraction: float = eqx.field(static=True)
+
+    def evaluate(self, values: dict) -> jnp.ndarray:
+        """All metrics (in ``specs`` order, their units) for one parameter set (SI)."""
+        p = self.protocol
+        params = _single_run_params(values, "hysteresis")
+        c = self.hyst_model.components(params, [m.hysteresis_input(p.time_s, p.torque_Nm)])[0]
+        theta, tau = c["total"], p.torque_Nm
+        # full branches between −T_r and +T_r: down = steps 2+3 (reversed so τ rises), up = 4+5
+        i1 = p.i2 // 2  # end of step 1 (τ = +T_r)
+        dn_t, dn_y = tau[p.i3:i1 - 1:-1], theta[p.i3:i1 - 1:-1]
+        u_t, u_y = tau[p.i3:p.i5 + 1], theta[p.i3:p.i5 + 1]
+
+        def at(t_branch, y_branch, level):
+            return jnp.interp(level, t_branch, y_branch)
+
+        x = self.lost_motion_fraction * self.rated
+        mid0 = 0.5 * (at(dn_t, dn_y, 0.0) + at(u_t, u_y, 0.0))
+        rated_twist = theta[p.i5] - mid0
+        rated_twist_start = theta[p.i5] - theta[0]
+        lost = 0.5 * (at(dn_t, dn_y, x) + at(u_t, u_y, x)) - 0.5 * (at(dn_t, dn_y, -x) + at(u_t, u_y, -x))
+        backlash = at(dn_t, dn_y, 0.0) - at(u_t, u_y, 0.0)
+        grid = jnp.linspace(-self.rated, self.rated, 801)
+        width = jnp.interp(grid, dn_t, dn_y) - jnp.interp(grid, u_t, u_y)
+        energy = jnp.trapezoid(width, grid)
+        slope = jax.grad(lambda t: self.hyst_model.compliance(params, t))(jnp.asarray(self.rated))
+        parts = [c["elastic"][p.i5], c["friction"][p.i5], c["geometric"][p.i5]]
+        if self.hyst_model.creep is not None:
+            parts.append(c["creep"][p.i5])
+        out = [
+            self.rated / rated_twist / NM_PER_ARCMIN,
+            self.rated / rated_twist_start / NM_PER_ARCMIN,
+            1.0 / slope / NM_PER_ARCMIN,
+            lost / ARCMIN,
+            backlash / ARCMIN,
+            energy,
+            values["gap"] / ARCMIN,
+            values["friction_torque"],
+        ] + [q / ARCMIN for q in parts]
+        if self.te_model is not None:
+            te_params = _single_run_params(values, "transmission_error")
+            for inp in self.te_inputs:
+                tc = self.te_model.components(te_params, [inp])[0]
+                te = tc["total"] - tc["offset"]  # against the unloaded, friction-free zero
+                out.append(jnp.abs(inp.torque_Nm) / jnp.abs(te[0]) / NM_PER_ARCMIN)  # at 180°
+                out.append(jnp.abs(inp.torque_Nm) / jnp.abs(jnp.mean(te[1:])) / NM_PER_ARCMIN)  # revolution mean
+        return jnp.stack([jnp.asarray(v, float) for v in out])
+
+    @eqx.filter_jit
+    def over_draws(self, values_batch: dict) -> jnp.ndarray:
+        """(draws, metrics) for a dict of stacked parameter draws."""
+        return jax.vmap(self.evaluate)(values_batch)
+
+
+def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_pct: float = 3.0) -> DerivedMetrics:
+    """Metric definitions and evaluation machinery for ``campaign`` fitted with ``model``."""
+    rated = campaign.reducer.rated_torque_Nm
+    rates = [r.loading_rate_Nm_per_s for r in campaign.hysteresis_runs if r.loading_rate_Nm_per_s]
+    rate = min(rates) if rates else rated / 100.0
+    hyst_model = dataclasses.replace(model, run_kinds=("hysteresis",))
+    specs = [
+        MetricSpec("stiffness_rated", "Nm/arcmin", f"secant T_r/(θ(T_r) − θ_mid(0)) of the model's five-step loop at {rate:g} N·m/s, midpoint reference"),
+        MetricSpec("stiffness_rated_from_start", "Nm/arcmin", "the same secant against the angle at the start of step 1 (the paper's protocol reference)"),
+        MetricSpec("stiffness_elastic", "Nm/arcmin", "elastic slope dτ/dθ_e of the compliance curve at T_r, without friction and lost motion"),
+        MetricSpec("lost_motion", "arcmin", f"twist between the model loop's midpoints at ±{lost_motion_pct:g} % of T_r"),
+        MetricSpec("backlash", "arcmin", "model loop width at zero torque (GB/T 35089; Harmonic Drive: 'hysteresis loss')"),
+        MetricSpec("dissipated_energy", "J", "model loop area per cycle, ±T_r"),
+        MetricSpec("geometric_gap", "arcmin", "geometric gap β of the mesh (model only)"),
+        MetricSpec("friction_torque", "Nm", "Coulomb friction level T_f (model only)"),
+        MetricSpec("twist_elastic_at_rated", "arcmin", "elastic part of the angle at T_r (end of step 5)"),
+        MetricSpec("twist_friction_at_rated", "arcmin", "friction part of the angle at T_r (end of step 5)"),
+        MetricSpec("twist_geometric_at_rated", "arcmin", "geometric part of the angle at T_r (end of step 5)"),
+    ]
+    if model.creep is not None:
+        specs.append(MetricSpec("twist_creep_at_rated", "arcmin", "creep part of the angle at T_r (end of step 5)"))
+    te_model, te_inputs = None, []
+    if campaign.te_runs:
+        te_model = dataclasses.replace(model, run_kinds=("transmission_error",))
+        phi = np.concatenate([[np.pi], np.linspace(0, 2 * np.pi, 721)[:-1]])
+        for run in campaign.te_runs:
+            cond = {"torque_Nm": run.torque_Nm, "speed_rpm": run.speed_rpm,
+                    "direction": "forward" if run.direction > 0 else "backward"}
+            te_inputs.append(m.te_input(phi, run.torque_Nm, run.speed_rpm, run.direction))
+            specs.append(MetricSpec(f"kd_mean[{run.name}]", "Nm/arcmin", "K_d = T / TE(180°), model TE against its unloaded zero", cond))
+            specs.append(MetricSpec(f"kt[{run.name}]", "Nm/arcmin", "K_t = T / revolution-mean TE, model", cond))
+    return DerivedMetrics(hyst_model, te_model, _protocol(rated, rate), te_inputs, tuple(specs), float(rated),
+                          lost_motion_pct / 100.0)

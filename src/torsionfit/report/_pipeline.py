@@ -1,0 +1,210 @@
+"""One campaign, end to end: model → MAP → posterior (emcee, or the Laplace approximation)
+→ derived metrics with uncertainty → ``fit.json``, ``posterior.nc`` and figures."""
+
+import json
+import math
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._errors import InputError
+from ..fit import NoiseOptions, build_problem, fit_map
+from ..io import Campaign
+from ..model import model_with_effects
+from ..units import ANGLE_UNITS
+from ._derived import derived_metrics_for
+
+ARCSEC = ANGLE_UNITS["arcsec"]
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """How to fit. ``effects``: model extensions by catalog name (DESIGN §3), switched on by
+    hand; ``sampler``: "emcee" (the posterior) or "laplace" (the MAP's Gaussian approximation,
+    fast, for screening)."""
+
+    effects: dict = field(default_factory=dict)
+    noise: NoiseOptions = NoiseOptions()
+    n_starts: int = 4
+    sampler: str = "emcee"
+    n_walkers: int | None = None
+    max_steps: int = 20_000
+    progress: bool = True
+    backend_path: str | None = None
+    resume: bool = False
+    laplace_draws: int = 4000
+    metric_draws: int = 2000  # draws used for the derived metrics
+    lost_motion_pct: float = 3.0
+
+
+@dataclass(frozen=True, eq=False)
+class CampaignFit:
+    campaign: Campaign
+    options: FitOptions
+    problem: object
+    map_result: object
+    draws_u: np.ndarray  # (draws, dim) posterior draws of u
+    metric_specs: tuple
+    metric_draws: np.ndarray  # (draws, metrics)
+    diagnostics: dict
+    rmse_arcsec: dict  # per run, at the MAP
+    tree: object = None  # ArviZ DataTree (emcee) or None
+    sample_result: object = None
+
+    @property
+    def run_names(self) -> list[str]:
+        return [r.name for r in self.campaign.runs]
+
+
+def _hdi(x: np.ndarray, prob: float = 0.95) -> tuple[float, float]:
+    """Narrowest interval holding ``prob`` of the draws."""
+    x = np.sort(np.asarray(x, float))
+    n = len(x)
+    k = max(1, int(math.floor(prob * n)))
+    if k >= n:
+        return float(x[0]), float(x[-1])
+    widths = x[k:] - x[: n - k]
+    i = int(np.argmin(widths))
+    return float(x[i]), float(x[i + k])
+
+
+def summarise(draws: np.ndarray) -> dict:
+    lo, hi = _hdi(draws)
+    return {"mean": float(np.mean(draws)), "sd": float(np.std(draws, ddof=1)), "hdi95": [lo, hi]}
+
+
+@eqx.filter_jit
+def _values_over_draws(problem, u_batch):
+    return jax.vmap(problem.full_values)(u_batch)
+
+
+def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: int = 0) -> CampaignFit:
+    """Fit ``campaign``; InputError on data that cannot be fitted."""
+    if not campaign.runs:
+        raise InputError("campaign has no runs to fit")
+    kinds = [r.kind for r in campaign.runs]
+    model = model_with_effects(kinds, options.effects, campaign.reducer.rated_torque_Nm, free_friction_start=True)
+    problem = build_problem(campaign, model, options.noise)
+    names = [r.name for r in campaign.runs]
+    map_result = fit_map(problem, names, n_starts=options.n_starts, seed=seed)
+    rng = np.random.default_rng(seed)
+    tree = sample_result = None
+    if options.sampler == "emcee":
+        from ..sample import convergence_summary, run_sampler, to_datatree
+
+        sample_result = run_sampler(problem, map_result, seed=seed, n_walkers=options.n_walkers,
+                                    max_steps=options.max_steps, progress=options.progress,
+                                    backend_path=options.backend_path, resume=options.resume)
+        chain = np.asarray(sample_result.chain)
+        draws_u = chain.reshape(-1, chain.shape[-1])
+        tree = to_datatree(problem, sample_result, names, seed=seed)
+        conv = convergence_summary(tree)
+        diagnostics = {
+            "sampler": "emcee",
+            "converged": bool(sample_result.converged and conv["rhat_max"] < 1.01 + 0.04),
+            "rhat_max": conv["rhat_max"],
+            "ess_min": conv["ess_min"],
+            "tau_max": float(np.max(sample_result.tau)),
+            "n_steps": int(sample_result.n_steps),
+            "n_walkers": int(chain.shape[1]),
+            "reason": sample_result.reason or "",
+        }
+    elif options.sampler == "laplace":
+        cov = 0.5 * (map_result.cov + map_result.cov.T)
+        draws_u = rng.multivariate_normal(map_result.u, cov, size=options.laplace_draws, method="eigh")
+        diagnostics = {
+            "sampler": "laplace",
+            "converged": bool(map_result.converged),
+            "rhat_max": None,
+            "ess_min": float(options.laplace_draws),
+            "reason": "" if map_result.converged else f"MAP did not converge: {map_result.message}",
+        }
+    else:
+        raise InputError(f"sampler must be 'emcee' or 'laplace', got {options.sampler!r}")
+    diagnostics["map_converged"] = bool(map_result.converged)
+    diagnostics["map_message"] = map_result.message
+
+    pick = rng.choice(len(draws_u), size=min(options.metric_draws, len(draws_u)), replace=False)
+    values = _values_over_draws(problem, jnp.asarray(draws_u[pick]))
+    derived = derived_metrics_for(campaign, model, options.lost_motion_pct)
+    metric_draws = np.asarray(derived.over_draws(values))
+    bad = ~np.all(np.isfinite(metric_draws), axis=1)
+    if bad.any():
+        warnings.warn(f"{bad.sum()} of {len(bad)} draws gave non-finite metrics and were dropped")
+        metric_draws = metric_draws[~bad]
+    residuals = problem.residuals(jnp.asarray(map_result.u))
+    rmse = {n: float(np.sqrt(np.mean(np.asarray(e) ** 2)) / ARCSEC) for n, e in zip(names, residuals)}
+    return CampaignFit(campaign=campaign, options=options, problem=problem, map_result=map_result,
+                       draws_u=np.asarray(draws_u), metric_specs=derived.specs, metric_draws=metric_draws,
+                       diagnostics=diagnostics, rmse_arcsec=rmse, tree=tree, sample_result=sample_result)
+
+
+def fit_json(fit: CampaignFit) -> dict:
+    """The ``fit.json`` document (DESIGN §5.2)."""
+    metrics = {}
+    for spec, col in zip(fit.metric_specs, fit.metric_draws.T):
+        entry = {**summarise(col), "unit": spec.unit, "description": spec.description}
+        if spec.condition:
+            entry["condition"] = spec.condition
+        metrics[spec.name] = entry
+    components = {k: metrics[k] for k in metrics if k.startswith("twist_")}
+    problem = fit.problem
+    params = {}
+    for name, col in zip(problem.names(fit.run_names), fit.draws_u.T):
+        params[name] = col
+    physics = {}
+    i = 0
+    from ..fit._transform import forward
+
+    for p in problem.physics:
+        for j in range(p.size):
+            key = p.name if p.size == 1 else f"{p.name}[{j}]"
+            physics[key] = {**summarise(np.asarray(forward(p.constraint, jnp.asarray(fit.draws_u[:, i])))),
+                            "unit": p.unit, "description": p.description}
+            i += 1
+    return {
+        "campaign": str(fit.campaign.path) if fit.campaign.path else None,
+        "label": fit.campaign.notes,
+        "reducer": {"name": fit.campaign.reducer.name, "rated_torque_Nm": fit.campaign.reducer.rated_torque_Nm},
+        "model": {"effects": sorted(fit.options.effects), "components": ["elastic", "friction", "geometric"]
+                  + (["creep"] if problem.model.creep is not None else [])},
+        "metrics": metrics,
+        "components": components,
+        "parameters": physics,
+        "diagnostics": fit.diagnostics,
+        "rmse": {name: {"value": v, "unit": "arcsec"} for name, v in fit.rmse_arcsec.items()},
+    }
+
+
+def summary_table(doc: dict) -> str:
+    """One screen: the headline metrics with 95 % HDIs, the diagnostics, RMSE per run."""
+    lines = [f"{doc['reducer']['name']}  ({doc['label']})" if doc.get("label") else doc["reducer"]["name"]]
+    lines.append(f"{'metric':34s} {'mean':>11s} {'sd':>9s}   {'95 % HDI':>23s}  unit")
+    for name, e in doc["metrics"].items():
+        lo, hi = e["hdi95"]
+        lines.append(f"{name:34s} {e['mean']:11.5g} {e['sd']:9.3g}   [{lo:10.5g}, {hi:10.5g}]  {e['unit']}")
+    d = doc["diagnostics"]
+    conv = "converged" if d["converged"] else f"NOT CONVERGED ({d.get('reason', '')})"
+    rhat = "n/a" if d.get("rhat_max") is None else f"{d['rhat_max']:.3f}"
+    ess = "n/a" if d.get("ess_min") is None else f"{d['ess_min']:.0f}"
+    lines.append(f"sampler {d['sampler']}: {conv}; R-hat max {rhat}, ESS min {ess}")
+    lines.append("RMSE: " + ", ".join(f"{k} {v['value']:.3g}″" for k, v in doc["rmse"].items()))
+    return "\n".join(lines)
+
+
+def write_fit(fit: CampaignFit, out_dir) -> dict:
+    """Write ``fit.json`` (and ``posterior.nc`` with emcee) to ``out_dir``; return fit.json."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = fit_json(fit)
+    (out / "fit.json").write_text(json.dumps(doc, indent=2))
+    if fit.tree is not None:
+        from ..sample import save_tree
+
+        save_tree(fit.tree, out / "posterior.nc")
+    return doc
