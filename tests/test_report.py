@@ -1,0 +1,115 @@
+"""Derived metrics, fit.json and `torsionfit fit` (Laplace path; the emcee path is in
+tests/test_sample.py and the statistical tests)."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from torsionfit.bench import load_bench, simulate
+from torsionfit.cli import EXIT_INPUT_ERROR, main
+from torsionfit.model import model_with_effects
+from torsionfit.report import FitOptions, derived_metrics_for, fit_campaign, fit_json
+
+BENCH = Path(__file__).parent / "benches" / "rv_small_base.toml"
+REQUIRED = ("stiffness_rated", "stiffness_elastic", "lost_motion", "backlash", "geometric_gap", "friction_torque")
+
+
+@pytest.fixture(scope="module")
+def noisy_bench(tmp_path_factory):
+    text = BENCH.read_text().replace("[truth]", "[noise]\nangle_sd_arcsec = 1.0\n[truth]")
+    path = tmp_path_factory.mktemp("bench") / "bench.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def laplace_fit(noisy_bench):
+    sim = simulate(load_bench(noisy_bench), seed=4)
+    return sim, fit_campaign(sim.campaign, FitOptions(sampler="laplace", n_starts=2), seed=0)
+
+
+def test_derived_metrics_of_the_truth_match_the_data_only_metrics(noisy_bench):
+    """The model's own loop, read exactly, agrees with the data-only reading of the data."""
+    from torsionfit.metrics import campaign_metrics
+
+    sim = simulate(load_bench(noisy_bench), seed=4)
+    derived = derived_metrics_for(sim.campaign, sim.model)
+    truth = dict(zip((s.name for s in derived.specs), np.asarray(derived.evaluate(sim.truth))))
+    data = {r["kind"]: r["metrics"] for r in campaign_metrics(sim.campaign)["runs"]}
+    hyst = data["hysteresis"]
+    assert truth["stiffness_elastic"] == pytest.approx(108.0, rel=1e-3)  # the bench's K
+    assert truth["geometric_gap"] == pytest.approx(1.0, rel=1e-9)
+    for name, rel in (("stiffness_rated", 0.01), ("lost_motion", 0.05), ("backlash", 0.05), ("dissipated_energy", 0.05)):
+        assert truth[name] == pytest.approx(hyst[name]["value"], rel=rel), name
+    assert truth["kd_mean[te-5rpm-fw]"] == pytest.approx(data["transmission_error"]["kd"]["value"], rel=0.01)
+
+
+def test_fit_json_has_the_contract(laplace_fit):
+    sim, fit = laplace_fit
+    doc = json.loads(json.dumps(fit_json(fit)))  # JSON-serialisable
+    for name in REQUIRED:
+        entry = doc["metrics"][name]
+        assert set(entry) >= {"mean", "sd", "hdi95", "unit"}
+        assert entry["hdi95"][0] <= entry["mean"] <= entry["hdi95"][1]
+    assert "kd_mean[te-5rpm-fw]" in doc["metrics"]
+    assert doc["metrics"]["kd_mean[te-5rpm-fw]"]["condition"] == {"torque_Nm": 380.0, "speed_rpm": 5.0, "direction": "forward"}
+    assert set(doc["diagnostics"]) >= {"converged", "rhat_max", "ess_min"}
+    assert set(doc["rmse"]) == {"hyst-5", "te-5rpm-fw"}
+    assert {"twist_elastic_at_rated", "twist_friction_at_rated", "twist_geometric_at_rated"} <= set(doc["components"])
+
+
+def test_laplace_fit_recovers_the_bench_truth(laplace_fit):
+    sim, fit = laplace_fit
+    doc = fit_json(fit)
+    derived = derived_metrics_for(sim.campaign, sim.model)
+    truth = dict(zip((s.name for s in derived.specs), np.asarray(derived.evaluate(sim.truth))))
+    for name in REQUIRED + ("kd_mean[te-5rpm-fw]",):
+        lo, hi = doc["metrics"][name]["hdi95"]
+        sd = doc["metrics"][name]["sd"]
+        # inside the 95 % HDI, or within 3 sd (one seed; calibration is tested in test_fit_statistics)
+        assert lo - 3 * sd <= truth[name] <= hi + 3 * sd, (name, truth[name], lo, hi)
+    # the three parts add up to the angle at rated torque (stiffness_rated_from_start's twist)
+    parts = sum(doc["components"][k]["mean"] for k in doc["components"])
+    assert 380.0 / parts == pytest.approx(doc["metrics"]["stiffness_rated_from_start"]["mean"], rel=1e-3)
+
+
+def test_fit_command_laplace(tmp_path, noisy_bench, capsys):
+    assert main(["simulate", str(noisy_bench), "-o", str(tmp_path / "c"), "--seed", "2"]) == 0
+    assert main(["fit", str(tmp_path / "c"), "-o", str(tmp_path / "fit"), "--sampler", "laplace", "--seed", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "stiffness_rated" in out and "SYNTHETIC" in out
+    doc = json.loads((tmp_path / "fit" / "fit.json").read_text())
+    assert doc["diagnostics"]["sampler"] == "laplace"
+    figures = {p.name for p in (tmp_path / "fit" / "figures").iterdir()}
+    assert {"loop-hyst-5.png", "components-hyst-5.png", "te-vs-angle.png", "kd-vs-speed.png", "pairs.png"} <= figures
+
+
+@pytest.mark.parametrize("flag, fragment", [
+    ("warp_drive", "unknown effect 'warp_drive'"),
+    ("kinematic_error=[1, 2", "not a TOML value"),
+])
+def test_fit_command_rejects_bad_effects(tmp_path, flag, fragment, capsys):
+    main(["simulate", str(BENCH), "-o", str(tmp_path / "c")])
+    capsys.readouterr()
+    code = main(["fit", str(tmp_path / "c"), "-o", str(tmp_path / "f"), "--with", flag, "--sampler", "laplace"])
+    assert code == EXIT_INPUT_ERROR
+    err = capsys.readouterr().err
+    assert fragment in err and err.count("\n") == 1
+
+
+def test_fit_of_a_run_that_never_loads_is_a_clear_error(tmp_path, capsys):
+    folder = tmp_path / "c"
+    folder.mkdir()
+    t = np.arange(50) * 0.1
+    rows = "\n".join(f"{a},{0.01 * np.sin(a)},{0.1 * a}" for a in t)
+    (folder / "flat.csv").write_text("time_s,torque_Nm,angle_arcmin\n" + rows + "\n")
+    (folder / "campaign.toml").write_text(
+        '[reducer]\nname = "flat"\nrated_torque_Nm = 100\n[[runs]]\nname = "flat"\nkind = "hysteresis"\n'
+        'file = "flat.csv"\npeak_torque_Nm = 0.01\n'
+    )
+    code = main(["fit", str(folder), "-o", str(tmp_path / "f"), "--sampler", "laplace"])
+    assert code == EXIT_INPUT_ERROR
+    err = capsys.readouterr().err
+    assert "never loads" in err and "flat" in err and err.count("\n") == 1
