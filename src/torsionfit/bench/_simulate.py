@@ -114,9 +114,10 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
             drives.append(tau)
         else:
             n = int(round(spec.revolutions * bench.te_samples_per_rev))
-            # sample positions start at an arbitrary phase, so they do not fall on encoder steps
+            # samples are clocked, not triggered by position: each lands within ±¼ step of its
+            # nominal angle, so quantisation errors differ from sample to sample
             step = 2 * np.pi / bench.te_samples_per_rev
-            phi = np.linspace(0.0, 2 * np.pi * spec.revolutions, n + 1) + rng.uniform(0.0, step)
+            phi = np.linspace(0.0, 2 * np.pi * spec.revolutions, n + 1) + rng.uniform(-0.25, 0.25, n + 1) * step
             if spec.direction < 0:
                 phi = phi[::-1]
             inputs.append(m.te_input(phi, spec.torque_Nm + offset, spec.speed_rpm, spec.direction))

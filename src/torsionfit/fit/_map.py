@@ -70,7 +70,6 @@ def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
     cov = np.zeros((problem.dim, problem.dim))
     cov[:n, :n] = np.linalg.pinv(jac.T @ jac)
     sigma, rho = (np.asarray(x) for x in problem.noise_values(jnp.asarray(u)))
-    floors = np.asarray(problem.floors)
     counts = np.array([len(y) for y in problem.y], float)
     s2 = np.exp(2 * u[n:n + problem.n_runs])
     var_log_s = (sigma**2 / np.maximum(s2, 1e-300)) ** 2 / (2 * counts)
@@ -83,7 +82,6 @@ def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
         var = (1 - p**2) / (counts[r] * max(p * (1 - p), 1e-12) ** 2)
         cov[k, k] = min(var, RHO_PRIOR_SD**2)
         k += 1
-    del floors
     return cov
 
 

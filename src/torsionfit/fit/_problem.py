@@ -47,7 +47,10 @@ class NoiseOptions:
     """Likelihood options. ``ar1=None`` → AR(1) on for runs with ≥ 200 samples."""
 
     ar1: bool | None = None
-    student_t_dof: float | None = None  # None: Gaussian; a number: Student-t with that many dof
+    # None: Gaussian; a number: Student-t with that many dof. With Student-t the linear
+    # parameters are still solved by (whitened) least squares and marginalised with the
+    # Gaussian formula: an approximation, exact only in the Gaussian limit.
+    student_t_dof: float | None = None
     denoise_fraction: float | None = None  # smoother half-width per segment (None: by GCV)
 
 
@@ -137,7 +140,8 @@ class FitProblem(eqx.Module):
 
     # --- parameter layout ------------------------------------------------------------------
     def names(self, run_names) -> list[str]:
-        """Names of the entries of u (physics on their natural scale, noise as s_r, ρ_r)."""
+        """Names of the entries of u (model parameters, latent torque knots, then log s_r per
+        run and logit ρ_r per AR(1) run; all in the unconstrained space)."""
         out = []
         for p in self.physics:
             out += [p.name] if p.size == 1 else [f"{p.name}[{i}]" for i in range(p.size)]

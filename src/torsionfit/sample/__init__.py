@@ -1,0 +1,17 @@
+"""Posterior sampling (emcee) and the ArviZ tree of a fit (DESIGN §2, §5.2)."""
+
+from ._emcee import (
+    BufferedHDFBackend as BufferedHDFBackend,
+    ConvergenceWarning as ConvergenceWarning,
+    SampleResult as SampleResult,
+    default_n_walkers as default_n_walkers,
+    run_sampler as run_sampler,
+)
+from ._tree import (
+    convergence_summary as convergence_summary,
+    load_tree as load_tree,
+    psis_loo as psis_loo,
+    run_variable_names as run_variable_names,
+    save_tree as save_tree,
+    to_datatree as to_datatree,
+)

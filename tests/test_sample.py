@@ -1,0 +1,411 @@
+"""Posterior sampling (emcee) and the ArviZ tree: convergence logic, HDF5 resume, NaN-safety,
+tree layout, netCDF round trip, diagnostics.
+
+The sampler's machinery is tested on a toy Gaussian problem (known answer, fast); the tree
+on a short run of a real small campaign started at the bench's truth (no MAP: its
+compilation alone takes ~20 s); the full MAP → converged chain on a real campaign is slow.
+"""
+
+import math
+import re
+import warnings
+from pathlib import Path
+from types import SimpleNamespace
+
+import arviz
+import emcee
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import xarray as xr
+
+import torsionfit  # noqa: F401  (enables float64 in JAX)
+from torsionfit.sample import (
+    ConvergenceWarning,
+    SampleResult,
+    convergence_summary,
+    default_n_walkers,
+    load_tree,
+    psis_loo,
+    run_sampler,
+    run_variable_names,
+    save_tree,
+    to_datatree,
+)
+from torsionfit.sample._emcee import _LogProb, _regularised_cov, initial_walkers
+from torsionfit.sample._tree import _ar1_noise
+
+BENCH = Path(__file__).parent / "benches" / "rv_small_base.toml"
+GROUPS = ("posterior", "posterior_predictive", "log_likelihood", "observed_data", "sample_stats")
+
+
+# --- a toy problem with a known posterior ----------------------------------------------------
+class GaussianProblem(eqx.Module):
+    """N(mean, cov) in u: what ``run_sampler`` needs of a FitProblem (``dim``, ``log_density``)."""
+
+    mean: jnp.ndarray
+    precision: jnp.ndarray
+
+    @property
+    def dim(self) -> int:
+        return int(self.mean.shape[0])
+
+    def log_density(self, u):
+        d = u - self.mean
+        return -0.5 * d @ self.precision @ d
+
+
+def _toy(dim=3, seed=0):
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(dim, dim))
+    cov = a @ a.T / dim + np.eye(dim)
+    mean = np.arange(dim, dtype=float)
+    problem = GaussianProblem(jnp.asarray(mean), jnp.asarray(np.linalg.inv(cov)))
+    start = SimpleNamespace(u=mean, cov=cov, names=[f"x{i}" for i in range(dim)])
+    return problem, start, mean, cov
+
+
+FAST = dict(check_every=100, min_steps=300, progress=False)
+
+
+def test_default_n_walkers():
+    for dim in (1, 5, 14, 15, 40):
+        n = default_n_walkers(dim)
+        assert n % 2 == 0 and n >= 32 and n >= 2 * dim + 2
+
+
+def test_regularised_cov_is_positive_definite():
+    bad = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 0.0]])  # singular, zero variance
+    bad[0, 2] = np.nan
+    cov = _regularised_cov(bad)
+    assert np.all(np.isfinite(cov))
+    np.linalg.cholesky(cov)
+    assert np.allclose(np.diag(cov)[:2], 1.0)
+
+
+def test_toy_converges_and_matches_target():
+    problem, start, mean, cov = _toy()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)
+        res = run_sampler(problem, start, seed=1, **FAST)
+    assert isinstance(res, SampleResult)
+    assert res.converged and res.reason == ""
+    assert res.n_steps > 50 * res.tau_max and res.n_steps >= 300
+    assert res.burn_in == math.ceil(2 * res.tau_max)
+    assert res.thin == max(1, int(np.min(res.tau) // 2))
+    w = default_n_walkers(3)
+    assert res.chain.shape == (res.n_draws, w, 3) and res.log_prob.shape == (res.n_draws, w)
+    assert res.acceptance_rate.shape == res.log_prob.shape
+    assert res.acceptance_fraction.shape == (w,) and 0.2 < res.acceptance_fraction.mean() < 0.8
+    assert res.names == ("x0", "x1", "x2")
+    draws = res.flat()
+    sd = np.sqrt(np.diag(cov))
+    # MC error of the mean is ≈ sd / √ESS; ESS is in the hundreds here
+    assert np.all(np.abs(draws.mean(0) - mean) < 0.25 * sd)
+    assert np.allclose(draws.std(0), sd, rtol=0.15)
+
+
+def test_same_seed_same_chain():
+    problem, start, *_ = _toy()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        a = run_sampler(problem, start, seed=3, max_steps=200, **FAST)
+        b = run_sampler(problem, start, seed=3, max_steps=200, **FAST)
+        c = run_sampler(problem, start, seed=4, max_steps=200, **FAST)
+    assert np.array_equal(a.chain, b.chain)
+    assert not np.array_equal(a.chain, c.chain)
+
+
+def test_max_steps_gives_unconverged_with_warning():
+    problem, start, *_ = _toy()
+    with pytest.warns(ConvergenceWarning, match=r"not converged after 200 steps"):
+        res = run_sampler(problem, start, seed=0, max_steps=200, **FAST)
+    assert not res.converged
+    assert "200" in res.reason and re.search(r"50 × τ_max|τ_max still changing|min_steps", res.reason)
+    assert res.n_steps == 200
+    assert res.chain.shape[0] >= 2  # burn-in / thinning capped: something is left
+
+
+def test_hdf5_resume_continues_the_same_chain(tmp_path):
+    problem, start, *_ = _toy()
+    never = dict(FAST, tau_factor=1e4)  # every run goes to max_steps
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        whole = run_sampler(problem, start, seed=5, max_steps=400, backend_path=tmp_path / "a.h5", **never)
+        part = run_sampler(problem, start, seed=5, max_steps=200, backend_path=tmp_path / "b.h5", **never)
+        first = emcee.backends.HDFBackend(str(tmp_path / "b.h5"), read_only=True).get_chain()
+        assert first.shape[0] == 200 and part.n_steps == 200
+        # "interrupted" after 200 steps: resume to 400 (the seed is not used on resume)
+        resumed = run_sampler(problem, start, seed=99, max_steps=400, backend_path=tmp_path / "b.h5",
+                              resume=True, **never)
+    full_a = emcee.backends.HDFBackend(str(tmp_path / "a.h5"), read_only=True).get_chain()
+    full_b = emcee.backends.HDFBackend(str(tmp_path / "b.h5"), read_only=True).get_chain()
+    assert full_b.shape == (400, default_n_walkers(3), 3)
+    assert np.array_equal(full_b[:200], first)  # the stored part is kept
+    assert np.array_equal(full_b, full_a)  # and continued exactly as an uninterrupted run
+    assert resumed.n_steps == whole.n_steps == 400
+    assert np.array_equal(resumed.chain, whole.chain)
+    # without resume the file is overwritten
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        run_sampler(problem, start, seed=5, max_steps=100, backend_path=tmp_path / "b.h5", **never)
+    assert emcee.backends.HDFBackend(str(tmp_path / "b.h5"), read_only=True).iteration == 100
+
+
+def test_interrupted_run_keeps_its_steps_and_resumes_exactly(tmp_path, monkeypatch):
+    """A KeyboardInterrupt in the middle of a block: the completed steps are on disk, and a
+    resumed run ends with the chain of an uninterrupted one."""
+    from torsionfit.sample import _emcee
+
+    problem, start, *_ = _toy()
+    never = dict(FAST, tau_factor=1e4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        run_sampler(problem, start, seed=7, max_steps=300, backend_path=tmp_path / "a.h5", **never)
+        real_call, calls = _emcee._LogProb.__call__, []
+
+        def flaky(self, coords):
+            calls.append(1)
+            if len(calls) > 251:  # 1 (start) + 1 (emcee's first) + 2 per step: dies in step 125
+                raise KeyboardInterrupt
+            return real_call(self, coords)
+
+        monkeypatch.setattr(_emcee._LogProb, "__call__", flaky)
+        with pytest.raises(KeyboardInterrupt):
+            run_sampler(problem, start, seed=7, max_steps=300, backend_path=tmp_path / "b.h5", **never)
+        monkeypatch.setattr(_emcee._LogProb, "__call__", real_call)
+        stored = emcee.backends.HDFBackend(str(tmp_path / "b.h5"), read_only=True).iteration
+        assert stored == 124  # every completed step, including those of the unfinished block
+        res = run_sampler(problem, start, seed=0, max_steps=300, backend_path=tmp_path / "b.h5",
+                          resume=True, **never)
+        # resuming a chain that already has max_steps: judged as it is, nothing added
+        again = run_sampler(problem, start, seed=0, max_steps=300, backend_path=tmp_path / "b.h5",
+                            resume=True, **never)
+    a = emcee.backends.HDFBackend(str(tmp_path / "a.h5"), read_only=True).get_chain()
+    b = emcee.backends.HDFBackend(str(tmp_path / "b.h5"), read_only=True).get_chain()
+    assert res.n_steps == 300 and np.array_equal(a, b)
+    assert again.n_steps == 300 and not again.converged and again.reason
+
+
+def test_resume_rejects_another_problem(tmp_path):
+    problem, start, *_ = _toy(3)
+    other, other_start, *_ = _toy(4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        run_sampler(problem, start, seed=0, max_steps=100, backend_path=tmp_path / "c.h5", **FAST)
+        with pytest.raises(ValueError, match="dimension"):
+            run_sampler(other, other_start, seed=0, max_steps=200, backend_path=tmp_path / "c.h5",
+                        resume=True, **FAST)
+
+
+def test_ar1_noise_has_the_stated_variance_and_correlation():
+    rho, n = 0.8, 200_000
+    x = np.asarray(_ar1_noise(jax.random.PRNGKey(0), jnp.full(n, 2.0), rho, None))
+    assert np.var(x) == pytest.approx(4.0 / (1 - rho**2), rel=0.05)
+    assert np.corrcoef(x[1:], x[:-1])[0, 1] == pytest.approx(rho, abs=0.01)
+
+
+def test_run_variable_names_are_safe_and_unique():
+    names = run_variable_names(["hyst-5", "te 5rpm/fw", "hyst_5"])
+    assert names[0] == "angle_hyst_5" and names[1] == "angle_te_5rpm_fw"
+    assert len(set(names)) == 3 and all(re.fullmatch(r"\w+", n) for n in names)
+
+
+# --- a real small campaign ----------------------------------------------------------------
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    """A base-model campaign at 1 Hz (a few hundred samples per run), its problem, and a
+    start at the bench's truth (a stand-in for the MAP, which takes long to compile)."""
+    from torsionfit.bench import load_bench, simulate
+    from torsionfit.fit import build_problem
+    from torsionfit.model import model_with_effects
+
+    path = tmp_path_factory.mktemp("bench") / "bench.toml"
+    path.write_text(BENCH.read_text().replace("sample_rate_Hz = 5.0", "sample_rate_Hz = 1.0"))
+    sim = simulate(load_bench(path), seed=0)
+    runs = [r.name for r in sim.campaign.runs]
+    model = model_with_effects([r.kind for r in sim.campaign.runs], {}, sim.campaign.reducer.rated_torque_Nm,
+                               free_friction_start=True)
+    problem = build_problem(sim.campaign, model)
+    truth = {k: np.asarray(v) for k, v in sim.truth.items()}
+    truth.setdefault("friction_start", np.zeros(model.n_hysteresis))
+    u = np.concatenate([problem.physics_u(truth), np.zeros(problem.n_knots),
+                        np.full(problem.n_runs, np.log(1e-6)), np.zeros(problem.n_ar1)])
+    sd = np.concatenate([0.01 * np.asarray(problem.prior_sd), np.full(problem.n_runs + problem.n_ar1, 0.1)])
+    start = SimpleNamespace(u=u, cov=np.diag(sd**2), names=problem.names(runs))
+    return SimpleNamespace(sim=sim, runs=runs, problem=problem, start=start)
+
+
+@pytest.fixture(scope="module")
+def short_tree(small):
+    with pytest.warns(ConvergenceWarning):
+        res = run_sampler(small.problem, small.start, seed=0, max_steps=300, check_every=150,
+                          progress=False)
+    tree = to_datatree(small.problem, res, small.runs, n_predictive_draws=40, seed=0)
+    return res, tree
+
+
+def test_log_density_never_nan(small):
+    logp = _LogProb(small.problem)
+    dim = small.problem.dim
+    absurd = np.array([
+        np.full(dim, 1e300), np.full(dim, -1e300), np.full(dim, 800.0), np.full(dim, -800.0),
+        np.full(dim, np.nan), np.full(dim, np.inf),
+        np.where(np.arange(dim) == 0, 1e308, small.start.u),
+    ])
+    # padded to 32 rows with a sensible point: the batch shape the sampler compiles anyway
+    batch = np.concatenate([absurd, np.tile(small.start.u, (32 - len(absurd), 1))])
+    lp = logp(batch)
+    assert lp.shape == (32,)
+    assert not np.any(np.isnan(lp))
+    assert np.all(lp[:len(absurd)] == -np.inf)
+    assert np.all(np.isfinite(lp[len(absurd):]))
+
+
+def test_initial_walkers_are_finite_even_from_a_wide_laplace(small):
+    cov = np.diag(np.full(small.problem.dim, 4.0))  # very wide: many draws are invalid
+    walkers = initial_walkers(small.problem, small.start.u, cov, 32, np.random.default_rng(0))
+    assert walkers.shape == (32, small.problem.dim)
+    assert np.all(np.isfinite(_LogProb(small.problem)(walkers)))
+
+
+def test_datatree_layout(small, short_tree):
+    res, tree = short_tree
+    problem, runs = small.problem, small.runs
+    assert set(GROUPS) <= set(tree.children)
+    post = tree["posterior"]
+    n_walkers, n_draws = res.n_walkers, res.n_draws
+    assert (post.sizes["chain"], post.sizes["draw"]) == (n_walkers, n_draws)
+    for p in problem.model.parameters():
+        assert p.name in post.data_vars, p.name
+        assert post[p.name].attrs["units"] == p.unit
+        assert post[p.name].dims[:2] == ("chain", "draw")
+    assert post["stiffness"].dims == ("chain", "draw")
+    assert post["stiffness"].attrs["units"] == "N·m/rad"
+    assert post["angle_offset"].dims == ("chain", "draw", "hysteresis_run")
+    assert list(post["hysteresis_run"].values) == ["hyst-5"]
+    assert post["noise_sigma"].dims == ("chain", "draw", "run") and post["noise_sigma"].attrs["units"] == "rad"
+    assert post["ar1_rho"].dims == ("chain", "draw", "ar1_run")
+    assert post["torque_knot_correction"].sizes["torque_knot"] == problem.n_knots
+    assert {post[k].attrs["role"] for k in post.data_vars} == {"model", "noise", "latent"}
+    # posterior values are the draws mapped to SI (stiffness = exp(u[0]))
+    np.testing.assert_allclose(post["stiffness"].values, np.exp(res.chain[..., 0].T), rtol=1e-12)
+    np.testing.assert_allclose(post["torque_knot_correction"].values,
+                               np.transpose(res.chain[..., problem.n_model:problem.n_nonlinear], (1, 0, 2)))
+
+    names = run_variable_names(runs)
+    import json
+    assert json.loads(tree.attrs["run_variables"]) == dict(zip(runs, names))
+    for g in ("posterior_predictive", "log_likelihood"):
+        ds = tree[g]
+        assert (ds.sizes["chain"], ds.sizes["draw"]) == (1, 40)
+        assert ds["posterior_chain"].max() < n_walkers and ds["posterior_draw"].max() < n_draws
+        for r, (run, var) in enumerate(zip(runs, names)):
+            assert ds[var].dims == ("chain", "draw", f"{var}_sample")
+            assert ds[var].sizes[f"{var}_sample"] == len(problem.y[r])
+            assert ds[var].attrs["units"] == "rad" and ds[var].attrs["run"] == run
+            assert np.all(np.isfinite(ds[var].values))
+    obs = tree["observed_data"]
+    for r, var in enumerate(names):
+        np.testing.assert_array_equal(obs[var].values, np.asarray(problem.y[r]))
+    # the predictive scatters around the data at about the noise level
+    for var in names:
+        resid = tree["posterior_predictive"][var].values[0] - obs[var].values
+        assert np.sqrt(np.mean(resid**2)) < 10 * float(post["noise_sigma"].max())
+    stats = tree["sample_stats"]
+    assert stats["lp"].dims == ("chain", "draw") and stats["acceptance_rate"].dims == ("chain", "draw")
+    np.testing.assert_allclose(stats["lp"].values, res.log_prob.T)
+    for key in ("tau_max", "n_steps", "burn_in", "thin", "converged"):
+        assert key in stats.attrs
+    assert stats.attrs["converged"] == 0 and stats.attrs["n_steps"] == 300
+    assert 0 < tree["log_likelihood"].attrs["reff"] <= 1
+
+
+def test_netcdf_round_trip(short_tree, tmp_path):
+    _, tree = short_tree
+    path = tmp_path / "posterior.nc"
+    save_tree(tree, path)
+    back = load_tree(path)
+    assert set(GROUPS) <= set(back.children)
+    xr.testing.assert_identical(back["posterior"].to_dataset(), tree["posterior"].to_dataset())
+    xr.testing.assert_allclose(back["log_likelihood"].to_dataset(), tree["log_likelihood"].to_dataset())
+    assert back["posterior"]["stiffness"].attrs["units"] == "N·m/rad"
+    assert back["sample_stats"].attrs["thin"] == tree["sample_stats"].attrs["thin"]
+    # ArviZ's own loader reads it as it is
+    with arviz.from_netcdf(path) as az_tree:
+        np.testing.assert_array_equal(az_tree["posterior"]["gap"].values, tree["posterior"]["gap"].values)
+        assert float(arviz.rhat(az_tree, var_names=["stiffness"])["stiffness"]) > 0
+
+
+def test_convergence_summary_keys(small, short_tree):
+    _, tree = short_tree
+    s = convergence_summary(tree)
+    for key in ("rhat_max", "ess_min", "rhat", "ess", "converged", "tau_max"):
+        assert key in s
+    model_names = {p.name for p in small.problem.model.parameters()}
+    assert {k.split("[")[0] for k in s["rhat"]} == model_names  # model parameters only
+    assert "angle_offset[hyst-5]" in s["rhat"]
+    assert s["rhat_max"] == pytest.approx(max(v for v in s["rhat"].values() if np.isfinite(v)))
+    assert s["ess_min"] == pytest.approx(min(v for v in s["ess"].values() if np.isfinite(v)))
+    assert s["converged"] is False
+
+
+def test_psis_loo_runs_on_the_tree(short_tree):
+    _, tree = short_tree
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Pareto-k warnings on a 300-step chain are expected
+        pooled = psis_loo(tree)
+        one = psis_loo(tree, var_name="angle_hyst_5")
+        plain = arviz.loo(tree, var_name="angle_hyst_5", reff=tree["log_likelihood"].attrs["reff"])
+    n_obs = sum(tree["observed_data"][v].size for v in tree["observed_data"].data_vars)
+    assert pooled.n_data_points == n_obs and np.isfinite(pooled.elpd) and np.isfinite(pooled.se)
+    assert one.elpd == pytest.approx(plain.elpd)
+
+
+def test_linear_parameters_drawn_from_their_conditional_posterior(small):
+    """One u repeated: with ``linear="sample"`` the spread of the linear parameters is their
+    conditional posterior N(β̂(u), A⁻¹); with ``"profile"`` they are β̂(u) = full_values(u)."""
+    problem = small.problem
+    u = small.start.u
+    n_draws, n_walkers = 64, 32
+    res = SampleResult(chain=np.tile(u, (n_draws, n_walkers, 1)), log_prob=np.zeros((n_draws, n_walkers)),
+                       tau=np.ones(problem.dim), n_steps=n_draws, burn_in=0, thin=1,
+                       acceptance_fraction=np.zeros(n_walkers), converged=False, reason="test",
+                       names=tuple(problem.names(small.runs)))
+    prof = to_datatree(problem, res, small.runs, n_predictive_draws=40, linear="profile")["posterior"]
+    drawn = to_datatree(problem, res, small.runs, n_predictive_draws=40)["posterior"]
+    full = problem.full_values(jnp.asarray(u))
+    assert np.allclose(prof["te_offset"].values, float(np.ravel(full["te_offset"])[0]))
+    # A from the whitened design matrices, as the likelihood builds it
+    _, rho = problem.noise_values(jnp.asarray(u))
+    _, beta_hat, _, scales = problem.profile(jnp.asarray(u), return_scales=True)
+    wx = [np.asarray(problem.whiten(x, scales[r], rho[r])) for r, x in enumerate(problem.design)]
+    sd = np.sqrt(np.diag(np.linalg.inv(sum(w.T @ w for w in wx))))
+    beta = np.stack([drawn["angle_offset"].values[..., 0].ravel(), drawn["te_offset"].values.ravel()], axis=1)
+    assert np.all(np.abs(beta.mean(0) - np.asarray(beta_hat)) < 4 * sd / np.sqrt(len(beta)))
+    np.testing.assert_allclose(beta.std(0), sd, rtol=0.1)
+    with pytest.raises(ValueError, match="linear"):
+        to_datatree(problem, res, small.runs, linear="nope")
+
+
+@pytest.mark.slow
+def test_real_campaign_converges_near_the_map(small):
+    """MAP → Laplace start → emcee to convergence on the small campaign: the posterior of the
+    physics is centred on the MAP and about as wide as the Laplace approximation."""
+    from torsionfit.fit import fit_map
+
+    m = fit_map(small.problem, small.runs, n_starts=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)
+        res = run_sampler(small.problem, m, seed=0, progress=False)
+    assert res.converged
+    n = small.problem.n_model
+    draws = res.flat()[:, :n]
+    sd = m.sd[:n]
+    assert np.all(np.abs(draws.mean(0) - m.u[:n]) < 0.5 * sd)
+    assert np.all((draws.std(0) > 0.5 * sd) & (draws.std(0) < 2.0 * sd))
+    tree = to_datatree(small.problem, res, small.runs)
+    s = convergence_summary(tree)
+    assert s["converged"] and s["rhat_max"] < 1.05 and s["ess_min"] > 400
