@@ -1,0 +1,214 @@
+"""The effects catalog (DESIGN §3): each effect pairs a residual signature with a model
+extension. Adding an effect is one new subclass of :class:`Effect` here, listed in
+``CATALOG``."""
+
+import abc
+
+import numpy as np
+
+from ._context import FitContext
+from ._signature import Evidence, regression_evidence
+
+#: kinematic orders searched in TE residuals (per output revolution)
+MAX_KINEMATIC_ORDER = 120
+
+
+class Effect(abc.ABC):
+    """A physical effect the base model lacks."""
+
+    name: str = ""
+    signature_text: str = ""
+    extension_text: str = ""
+
+    def applicable(self, ctx: FitContext) -> bool:
+        return True
+
+    @abc.abstractmethod
+    def signature(self, ctx: FitContext, alpha: float) -> Evidence:
+        """Evidence for the effect in the residuals of ``ctx``."""
+
+    @abc.abstractmethod
+    def extend(self, effects: dict, evidence: Evidence, ctx: FitContext) -> dict:
+        """The ``effects`` switches with this effect's extension added."""
+
+
+def _t(run, ctx):
+    return run.mesh_torque_Nm / ctx.rated_torque_Nm
+
+
+class StiffnessNonlinearity(Effect):
+    name = "stiffness_nonlinearity"
+    signature_text = "smooth curvature of the residual versus mesh torque (odd powers τ³, τ⁵)"
+    extension_text = "three-segment compliance (K1, K2, K3 with smooth knees)"
+
+    def signature(self, ctx, alpha):
+        cols = [np.stack([_t(r, ctx) ** 3, _t(r, ctx) ** 5], axis=1) for r in ctx.runs]
+        return regression_evidence(self.name, ctx.runs, cols, "residual curves with mesh torque (τ³, τ⁵ terms)")
+
+    def extend(self, effects, evidence, ctx):
+        return {**effects, self.name: "three_segment"}
+
+
+class RateDependence(Effect):
+    name = "rate_dependence"
+    signature_text = "residual that grows with the loading rate dτ/dt, across loops run at different rates"
+    extension_text = "creep element (K_c, T_c)"
+
+    def _rates(self, ctx):
+        out = []
+        for r in ctx.hysteresis:
+            rate = np.gradient(r.drive_torque_Nm, r.time_s, edge_order=1) if np.all(np.diff(r.time_s) > 0) else None
+            if rate is None:  # duplicate stamps: differentiate over sample index, scale by mean step
+                dt = (r.time_s[-1] - r.time_s[0]) / max(len(r.time_s) - 1, 1)
+                rate = np.gradient(r.drive_torque_Nm) / max(dt, 1e-12)
+            out.append(rate)
+        return out
+
+    def applicable(self, ctx):
+        if len(ctx.hysteresis) < 2:
+            return False
+        typical = [np.median(np.abs(x)) for x in self._rates(ctx)]
+        return max(typical) > 1.2 * min(typical)
+
+    def signature(self, ctx, alpha):
+        rates = self._rates(ctx)
+        scale = max(np.max(np.abs(x)) for x in rates)
+        cols = []
+        for r in ctx.runs:
+            cols.append(rates.pop(0)[:, None] / scale if r.kind == "hysteresis" else None)
+        return regression_evidence(self.name, ctx.runs, cols, "residual proportional to the loading rate dτ/dt across loops at different rates")
+
+    def extend(self, effects, evidence, ctx):
+        return {**effects, self.name: True}
+
+
+class KinematicError(Effect):
+    name = "kinematic_error"
+    signature_text = "peaks in the spectrum of the TE residual over output angle, at integer orders"
+    extension_text = "harmonic terms a_k cos kφ + b_k sin kφ at the orders found"
+
+    def applicable(self, ctx):
+        return bool(ctx.te)
+
+    def _present(self, ctx):
+        kin = ctx.effects.get(self.name)
+        if not kin:
+            return set()
+        return set(kin.get("orders") if isinstance(kin, dict) else kin)
+
+    def signature(self, ctx, alpha):
+        runs = ctx.te
+        samples = min(len(r.residual) for r in runs)
+        top = int(min(MAX_KINEMATIC_ORDER, max(2, samples // 4)))
+        present = self._present(ctx)
+        orders = [k for k in range(1, top + 1) if k not in present]
+        per_order = {}
+        for k in orders:
+            cols = [np.stack([np.cos(k * r.output_angle_rad), np.sin(k * r.output_angle_rad)], axis=1) for r in runs]
+            per_order[k] = regression_evidence(self.name, runs, cols, "")
+        # Bonferroni over the orders searched
+        threshold = np.log10(alpha / max(len(orders), 1))
+        found = sorted(k for k, ev in per_order.items() if ev.dof and ev.log10_p < threshold)
+        if not found:
+            best = min(per_order.items(), key=lambda kv: kv[1].log10_p, default=(None, None))
+            return Evidence(self.name, 0.0, 0, 0.0, 0.0,
+                            f"no significant order in 1..{top} (strongest: order {best[0]}, log10 p {best[1].log10_p:.1f})" if best[0] else "no orders to search",
+                            {"orders_found": [], "orders_searched": top})
+        cols = [np.concatenate([np.stack([np.cos(k * r.output_angle_rad), np.sin(k * r.output_angle_rad)], axis=1) for k in found], axis=1) for r in runs]
+        ev = regression_evidence(self.name, runs, cols, f"TE residual periodic over output angle at orders {found}",
+                                 {"orders_found": found, "orders_searched": top,
+                                  "spectrum": {str(k): round(per_order[k].statistic, 2) for k in orders}})
+        # the order search is a multiple test: report the Bonferroni-corrected tail
+        return Evidence(ev.effect, ev.statistic, ev.dof, min(0.0, ev.log10_p + np.log10(len(orders))), ev.explained, ev.description, ev.details)
+
+    def extend(self, effects, evidence, ctx):
+        orders = sorted(self._present(ctx) | set(evidence.details.get("orders_found", [])))
+        return {**effects, self.name: orders}
+
+
+class SpeedDependence(Effect):
+    name = "speed_dependence"
+    signature_text = "TE residual level that changes with run speed (sign follows the direction)"
+    extension_text = "viscous friction c_v|v| and a speed-dependent compliance"
+
+    def _speeds(self, ctx):
+        return sorted({round(r.speed_rad_s, 9) for r in ctx.te})
+
+    def applicable(self, ctx):
+        return len(self._speeds(ctx)) >= 2
+
+    def signature(self, ctx, alpha):
+        vmax = max(r.speed_rad_s for r in ctx.te)
+        cols = []
+        for r in ctx.runs:
+            if r.kind != "transmission_error":
+                cols.append(None)
+                continue
+            v = r.speed_rad_s / vmax
+            n = len(r.residual)
+            cols.append(np.stack([np.full(n, r.direction * v), np.full(n, r.direction * v**2)], axis=1))
+        return regression_evidence(self.name, ctx.runs, cols, "TE residual level changes with speed (linear and quadratic in |v|)")
+
+    def extend(self, effects, evidence, ctx):
+        n_speeds = len(self._speeds(ctx))
+        return {**effects, self.name: {"viscous": True, "compliance_order": 1 if n_speeds >= 3 else 0}}
+
+
+class Asymmetry(Effect):
+    name = "asymmetry"
+    signature_text = "+ and − torque branches differ in slope (residual even in mesh torque, ∝ |τ|)"
+    extension_text = "separate + and − compliance (C(τ)·(1 + α·tanh(τ/w)))"
+
+    def signature(self, ctx, alpha):
+        cols = [np.abs(_t(r, ctx))[:, None] for r in ctx.runs]
+        return regression_evidence(self.name, ctx.runs, cols, "residual grows with |τ| the same way for both signs: + and − stiffness differ")
+
+    def extend(self, effects, evidence, ctx):
+        return {**effects, self.name: True}
+
+
+class ThermalDrift(Effect):
+    name = "thermal_drift"
+    signature_text = "slow trend of the residual over time within runs, not explained by torque"
+    extension_text = "a linear drift term per run"
+
+    def signature(self, ctx, alpha):
+        # one trend per run, tested jointly: column i is run i's normalised time, zero elsewhere
+        n = len(ctx.runs)
+        cols = []
+        for i, r in enumerate(ctx.runs):
+            span = max(float(r.time_s[-1] - r.time_s[0]), 1e-12)
+            c = np.zeros((len(r.residual), n))
+            c[:, i] = (r.time_s - r.time_s[0]) / span - 0.5
+            cols.append(c)
+        return regression_evidence(self.name, ctx.runs, cols, "residual trends over time within runs (one slope per run)")
+
+    def extend(self, effects, evidence, ctx):
+        return {**effects, self.name: True}
+
+
+class TorqueOffset(Effect):
+    name = "torque_offset"
+    signature_text = "loop centred off zero torque: residual ∝ the model's slope dθ/dτ"
+    extension_text = "a torque-sensor offset"
+
+    def applicable(self, ctx):
+        return bool(ctx.hysteresis)
+
+    def signature(self, ctx, alpha):
+        cols = [(r.sensitivity * ctx.rated_torque_Nm)[:, None] if r.kind == "hysteresis" else None for r in ctx.runs]
+        return regression_evidence(self.name, ctx.runs, cols, "residual proportional to the loop's local slope dθ/dτ: the loop is shifted in torque")
+
+    def extend(self, effects, evidence, ctx):
+        return {**effects, self.name: True}
+
+
+CATALOG: tuple[Effect, ...] = (
+    StiffnessNonlinearity(),
+    RateDependence(),
+    KinematicError(),
+    SpeedDependence(),
+    Asymmetry(),
+    ThermalDrift(),
+    TorqueOffset(),
+)

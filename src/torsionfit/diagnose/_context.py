@@ -1,0 +1,132 @@
+"""What a residual signature looks at: per run, the residuals of a fitted model, the noise
+model that whitens them, and the variables an effect may depend on."""
+
+from dataclasses import dataclass
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from ..fit import FitProblem, MapResult
+from ..io import Campaign
+
+
+@dataclass(frozen=True, eq=False)
+class RunView:
+    """One run as a signature sees it (SI units; arrays of the run's length)."""
+
+    name: str
+    kind: str  # "hysteresis" | "transmission_error"
+    time_s: np.ndarray
+    residual: np.ndarray  # measured − predicted, rad
+    scale: np.ndarray  # innovation sd per sample, rad (measurement noise, see variogram_noise)
+    rho: float  # AR(1) coefficient of the measurement noise
+    drive_torque_Nm: np.ndarray  # the torque driving the model (denoised + latent correction)
+    mesh_torque_Nm: np.ndarray
+    measured_angle_rad: np.ndarray  # the measured angle (hysteresis) or output angle (TE)
+    output_angle_rad: np.ndarray | None  # TE runs
+    speed_rad_s: float  # TE runs: output speed; 0 for hysteresis
+    direction: float  # TE runs: ±1; 0 for hysteresis
+    loading_rate_Nm_per_s: float | None
+    sensitivity: np.ndarray  # dθ̂/dτ̂ along the run (rad/N·m), for torque-offset signatures
+    design: np.ndarray  # the fit's linear design (offsets, drift, harmonics): nuisance columns
+
+    def whiten(self, x: np.ndarray) -> np.ndarray:
+        """The fit's AR(1) whitening with per-sample scales, on a vector or the columns of a matrix."""
+        x = np.asarray(x, float)
+        out = np.empty_like(x)
+        out[:1] = x[:1] * np.sqrt(1.0 - self.rho**2)
+        out[1:] = x[1:] - self.rho * x[:-1]
+        return out / (self.scale[:, None] if x.ndim == 2 else self.scale)
+
+
+@dataclass(frozen=True, eq=False)
+class FitContext:
+    """A campaign, the model fitted to it and the per-run views of its residuals."""
+
+    campaign: Campaign
+    effects: dict
+    map_result: MapResult
+    runs: tuple[RunView, ...]
+    rated_torque_Nm: float
+
+    @property
+    def hysteresis(self) -> tuple[RunView, ...]:
+        return tuple(r for r in self.runs if r.kind == "hysteresis")
+
+    @property
+    def te(self) -> tuple[RunView, ...]:
+        return tuple(r for r in self.runs if r.kind == "transmission_error")
+
+
+@eqx.filter_jit
+def _views(problem: FitProblem, u):
+    values = problem.full_values(u)
+    inputs = problem.corrected_inputs(u)
+    comps = problem.model.components(values, inputs)
+    preds = [c["total"] for c in comps]
+    scales = problem.sample_scales(u, problem.nonlinear_prediction(u[:problem.n_nonlinear]))
+    _, rho = problem.noise_values(u)
+    return preds, [c["mesh_torque"] for c in comps], scales, rho, inputs
+
+
+def variogram_noise(residual: np.ndarray) -> tuple[float, float]:
+    """(innovation sd, ρ) of AR(1) noise from the residual's short-lag variogram.
+
+    γ(1) = σ_m²(1 − ρ), γ(2) = σ_m²(1 − ρ²), so ρ = γ(2)/γ(1) − 1. A smooth misfit (what a
+    missing effect leaves) hardly changes increments over one or two samples, so unlike the
+    fit's AR(1) estimate — which a misfit drives towards ρ → 1, whitening the very structure
+    a signature looks for — this sees the measurement noise only.
+    """
+    e = np.asarray(residual, float)
+    if e.size < 8:
+        return float(np.std(e)) or 1e-12, 0.0
+    g1 = 0.5 * np.mean(np.diff(e) ** 2)
+    g2 = 0.5 * np.mean((e[2:] - e[:-2]) ** 2)
+    rho = float(np.clip(g2 / max(g1, 1e-300) - 1.0, 0.0, 0.95))
+    marginal_var = g1 / (1.0 - rho)
+    return float(np.sqrt(marginal_var * (1.0 - rho**2))) or 1e-12, rho
+
+
+def fit_context(campaign: Campaign, effects: dict, map_result: MapResult) -> FitContext:
+    problem = map_result.problem
+    u = jnp.asarray(map_result.u)
+    preds, mesh, scales, rho, inputs = _views(problem, u)
+    sigma_fit, _ = problem.noise_values(u)
+    views = []
+    noise = []
+    for i in range(len(campaign.runs)):
+        sd, r = variogram_noise(np.asarray(problem.y[i]) - np.asarray(preds[i]))
+        # keep the fit's per-sample errors-in-variables part, swap its noise level for the variogram's
+        eiv = np.maximum(np.asarray(scales[i]) ** 2 - float(sigma_fit[i]) ** 2, 0.0)
+        floor = float(problem.floors[i])
+        noise.append((np.sqrt(eiv + max(sd, floor) ** 2), r))
+    for i, run in enumerate(campaign.runs):
+        y = np.asarray(problem.y[i])
+        f = np.asarray(preds[i])
+        if run.kind == "hysteresis":
+            tau = np.asarray(inputs[i].torque_Nm)
+            d_f, d_t = np.gradient(f), np.gradient(tau)
+            eps = 1e-6 * (np.max(np.abs(tau)) + 1e-12)
+            sens = d_f * d_t / (d_t**2 + eps**2)
+            views.append(RunView(
+                name=run.name, kind=run.kind, time_s=np.asarray(run.time_s), residual=y - f,
+                scale=noise[i][0], rho=noise[i][1], drive_torque_Nm=tau,
+                mesh_torque_Nm=np.asarray(mesh[i]), measured_angle_rad=np.asarray(run.angle_rad),
+                output_angle_rad=None, speed_rad_s=0.0, direction=0.0,
+                loading_rate_Nm_per_s=run.loading_rate_Nm_per_s, sensitivity=sens,
+                design=np.asarray(problem.design[i]),
+            ))
+        else:
+            n = len(run)
+            phi = np.asarray(run.output_angle_rad)
+            time = np.asarray(inputs[i].time_s)
+            views.append(RunView(
+                name=run.name, kind=run.kind, time_s=time, residual=y - f, scale=noise[i][0],
+                rho=noise[i][1], drive_torque_Nm=np.full(n, run.torque_Nm * run.direction),
+                mesh_torque_Nm=np.asarray(mesh[i]), measured_angle_rad=phi, output_angle_rad=phi,
+                speed_rad_s=run.speed_rpm * 2 * np.pi / 60, direction=float(run.direction),
+                loading_rate_Nm_per_s=None, sensitivity=np.zeros(n), design=np.asarray(problem.design[i]),
+            ))
+    return FitContext(campaign=campaign, effects=dict(effects), map_result=map_result, runs=tuple(views),
+                      rated_torque_Nm=campaign.reducer.rated_torque_Nm)
