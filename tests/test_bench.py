@@ -107,3 +107,18 @@ def test_bad_bench_files(tmp_path, edit, message):
 def test_missing_bench_file(tmp_path):
     with pytest.raises(InputError, match="not found"):
         load_bench(tmp_path / "nope.toml")
+
+
+def test_te_runs_have_clock_time_in_both_directions(tmp_path):
+    """TE samples are clocked: time rises in backward runs too, and survives a write/read."""
+    from torsionfit.io import load_campaign, write_campaign
+
+    text = BASE.read_text().replace('direction = "forward"', 'direction = "backward"')
+    f = tmp_path / "bench.toml"
+    f.write_text(text)
+    sim = simulate(load_bench(f))
+    te = sim.campaign.runs[1]
+    assert te.direction == -1 and np.all(np.diff(te.time_s) > 0)
+    assert np.diff(te.output_angle_rad).mean() < 0
+    back = load_campaign(write_campaign(sim.campaign, tmp_path / "out"))
+    np.testing.assert_allclose(back.runs[1].time_s, te.time_s)

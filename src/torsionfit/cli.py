@@ -90,6 +90,20 @@ def _cmd_fit(args) -> int:
     return 0
 
 
+def _cmd_diagnose(args) -> int:
+    from .diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
+    from .io import load_campaign
+
+    campaign = load_campaign(args.campaign)
+    options = DiagnoseOptions(initial_effects=_parse_effects(args.with_))
+    say = (lambda text: None) if args.quiet else (lambda text: print(f"[diagnose] {text}", file=sys.stderr, flush=True))
+    result = diagnose(campaign, options, seed=args.seed, progress=say)
+    doc = write_diagnosis(result, campaign, args.output)
+    print(summary_text(doc))
+    print(f"wrote {Path(args.output) / 'diagnose.json'}, {Path(args.output) / 'figures'}/")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="torsionfit",
@@ -130,6 +144,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUTPUT/chain.h5")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_fit)
+
+    p = sub.add_parser("diagnose", help="close the loop: find what the model misses, add it, report before/after")
+    p.add_argument("campaign", type=Path, help="campaign manifest (TOML)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--with", dest="with_", action="append", metavar="EFFECT[=VALUE]",
+                   help="start from a model with this extension already on (repeatable)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=_cmd_diagnose)
     return parser
 
 

@@ -120,7 +120,8 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
             phi = np.linspace(0.0, 2 * np.pi * spec.revolutions, n + 1) + rng.uniform(-0.25, 0.25, n + 1) * step
             if spec.direction < 0:
                 phi = phi[::-1]
-            inputs.append(m.te_input(phi, spec.torque_Nm + offset, spec.speed_rpm, spec.direction))
+            clock = np.arange(n + 1) * step / (spec.speed_rpm * 2 * np.pi / 60)  # clocked samples
+            inputs.append(m.te_input(phi, spec.torque_Nm + offset, spec.speed_rpm, spec.direction, clock))
             drives.append(np.full(n + 1, spec.torque_Nm))
     comps = model.components(truth, inputs)
 

@@ -11,3 +11,4 @@ from ._loop import (
     fit_with as fit_with,
 )
 from ._signature import Evidence as Evidence, regression_evidence as regression_evidence
+from ._report import diagnose_json as diagnose_json, summary_text as summary_text, write_diagnosis as write_diagnosis

@@ -32,9 +32,9 @@ def hysteresis_input(time_s, torque_Nm) -> HysteresisInput:
 
 def te_input(output_angle_rad, torque_Nm, speed_rpm, direction, time_s=None) -> TEInput:
     phi = np.asarray(output_angle_rad, float)
-    if time_s is None:  # constant speed: time follows from angle
+    if time_s is None:  # constant speed: time follows from the angle travelled (either direction)
         speed = max(speed_rpm * 2 * np.pi / 60, 1e-12)
-        time_s = (phi - phi[0]) / speed
+        time_s = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(phi)))]) / speed
     return TEInput(
         jnp.asarray(phi),
         jnp.asarray(time_s, float),

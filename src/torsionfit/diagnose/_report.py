@@ -1,0 +1,185 @@
+"""``diagnose.json`` (DESIGN §5.2) and the figures of a diagnosis."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..units import ANGLE_UNITS
+from ._loop import Diagnosis
+
+ARCSEC = ANGLE_UNITS["arcsec"]
+
+
+def _evidence(ev) -> dict:
+    return {"effect": ev.effect, **ev.as_dict()}
+
+
+def diagnose_json(d: Diagnosis, campaign) -> dict:
+    def fitted(f):
+        return {"effects": sorted(f.effects), "rmse": f.rmse_arcsec, "max_abs": f.max_abs_arcsec,
+                "rmse_per_run": f.rmse_per_run, "elpd": f.elpd}
+
+    return {
+        "campaign": str(campaign.path) if campaign.path else None,
+        "label": campaign.notes,
+        "unit": "arcsec",
+        "steps": [
+            {"effect": s.effect, "evidence": _evidence(s.evidence),
+             "rmse_before": s.before.rmse_arcsec, "rmse_after": s.after.rmse_arcsec,
+             "max_abs_before": s.before.max_abs_arcsec, "max_abs_after": s.after.max_abs_arcsec,
+             "delta_elpd": s.delta_elpd, "delta_elpd_se": s.delta_elpd_se}
+            for s in d.steps
+        ],
+        "added": [s.effect for s in d.steps],
+        "rejected": [
+            {"effect": s.effect, "evidence": _evidence(s.evidence), "rmse_before": s.before.rmse_arcsec,
+             "rmse_after": s.after.rmse_arcsec, "delta_elpd": s.delta_elpd, "delta_elpd_se": s.delta_elpd_se}
+            for s in d.rejected
+        ],
+        "unexplained": d.unexplained,
+        "unexplained_description": d.unexplained_description,
+        "leftovers": [_evidence(e) for e in d.leftovers],
+        "rmse_base": d.base.rmse_arcsec,
+        "rmse_final": d.final.rmse_arcsec,
+        "base": fitted(d.base),
+        "final": fitted(d.final),
+        "signatures": [[_evidence(e) for e in sigs] for sigs in d.signatures],
+    }
+
+
+def summary_text(doc: dict) -> str:
+    lines = [f"base model: RMSE {doc['rmse_base']:.3g}″"]
+    for s in doc["steps"]:
+        lines.append(f"+ {s['effect']:24s} log10 p {s['evidence']['log10_p']:9.1f}   RMSE {s['rmse_before']:.3g}″ → "
+                     f"{s['rmse_after']:.3g}″   max {s['max_abs_before']:.3g}″ → {s['max_abs_after']:.3g}″   "
+                     f"ΔELPD {s['delta_elpd']:.1f} ± {s['delta_elpd_se']:.1f}")
+    for s in doc["rejected"]:
+        lines.append(f"  {s['effect']:24s} tried, not kept: ΔELPD {s['delta_elpd']:.1f} ± {s['delta_elpd_se']:.1f}")
+    lines.append(f"final: RMSE {doc['rmse_final']:.3g}″, effects added: {', '.join(doc['added']) or 'none'}")
+    lines.append("unexplained: " + (doc["unexplained_description"] if doc["unexplained"] else "nothing significant left"))
+    return "\n".join(lines)
+
+
+def write_diagnosis(d: Diagnosis, campaign, out_dir) -> dict:
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = diagnose_json(d, campaign)
+    (out / "diagnose.json").write_text(json.dumps(doc, indent=2))
+    write_figures(d, campaign, out / "figures")
+    return doc
+
+
+# ----------------------------------------------------------------------------- figures
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _residual_panels(axes, fitted, title):
+    for ax, r in zip(axes, fitted.context.runs):
+        x = r.time_s
+        ax.plot(x, r.residual / ARCSEC, ".", ms=1, color="C0")
+        ax.axhline(0, color="0.6", lw=0.5)
+        ax.set_ylabel(f"{r.name}\n(arcsec)", fontsize=7)
+        ax.tick_params(labelsize=6)
+    axes[0].set_title(f"{title}: RMSE {fitted.rmse_arcsec:.3g}″", fontsize=8)
+    axes[-1].set_xlabel("time (s)", fontsize=7)
+
+
+def _binned(x, y, bins=30):
+    edges = np.linspace(np.min(x), np.max(x), bins + 1)
+    idx = np.clip(np.digitize(x, edges) - 1, 0, bins - 1)
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    means = np.array([np.mean(y[idx == i]) if np.any(idx == i) else np.nan for i in range(bins)])
+    return centres, means
+
+
+def plot_signature(ax, effect: str, fitted, evidence):
+    """The residual view that points at ``effect`` (before the effect was added)."""
+    ctx = fitted.context
+    if effect == "kinematic_error":
+        spectrum = evidence.details.get("spectrum", {})
+        orders = np.array([int(k) for k in spectrum])
+        stats = np.array([spectrum[k] for k in spectrum])
+        ax.bar(orders, stats, width=0.8, color="C0")
+        for k in evidence.details.get("orders_found", []):
+            ax.axvline(k, color="C3", lw=0.6, ls="--")
+        ax.set_xlabel("order (per output revolution)")
+        ax.set_ylabel("Δχ² per order (2 dof)")
+        ax.set_title("spectrum of the TE residual over output angle", fontsize=8)
+    elif effect == "speed_dependence":
+        for r in ctx.te:
+            ax.errorbar(r.speed_rad_s * 60 / (2 * np.pi), np.mean(r.residual) / ARCSEC,
+                        yerr=np.std(r.residual) / ARCSEC / np.sqrt(len(r.residual)), fmt="o",
+                        color="C0" if r.direction > 0 else "C3")
+        ax.set_xlabel("output speed (rpm); blue forward, red backward")
+        ax.set_ylabel("mean TE residual (arcsec)")
+        ax.set_title("residual level versus speed", fontsize=8)
+    elif effect == "thermal_drift":
+        for k, r in enumerate(ctx.runs):
+            c, m = _binned(r.time_s, r.residual / ARCSEC)
+            ax.plot(c, m, "o-", ms=2, lw=0.8, color=f"C{k % 10}", label=r.name)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("binned residual (arcsec)")
+        ax.legend(fontsize=6)
+        ax.set_title("residual versus time", fontsize=8)
+    elif effect == "rate_dependence":
+        for k, r in enumerate(ctx.hysteresis):
+            c, m = _binned(r.mesh_torque_Nm, r.residual / ARCSEC, 40)
+            ax.plot(c, m, "o-", ms=2, lw=0.8, color=f"C{k % 10}", label=f"{r.name} ({r.loading_rate_Nm_per_s} N·m/s)")
+        ax.set_xlabel("mesh torque (N·m)")
+        ax.set_ylabel("binned residual (arcsec)")
+        ax.legend(fontsize=6)
+        ax.set_title("residual versus torque, one curve per loading rate", fontsize=8)
+    else:  # residual versus mesh torque
+        for k, r in enumerate(ctx.runs):
+            if r.kind != "hysteresis":
+                continue
+            ax.plot(r.mesh_torque_Nm, r.residual / ARCSEC, ".", ms=1, alpha=0.3, color=f"C{k % 10}")
+            c, m = _binned(r.mesh_torque_Nm, r.residual / ARCSEC, 40)
+            ax.plot(c, m, "-", lw=1.2, color=f"C{k % 10}", label=r.name)
+        ax.set_xlabel("mesh torque (N·m)")
+        ax.set_ylabel("residual (arcsec)")
+        ax.legend(fontsize=6)
+        ax.set_title("residual versus mesh torque", fontsize=8)
+    ax.axhline(0, color="0.6", lw=0.5)
+
+
+def write_figures(d: Diagnosis, campaign, folder) -> list:
+    plt = _plt()
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    source = campaign.notes or "source not stated"
+    paths = []
+    n = len(d.base.context.runs)
+    for i, s in enumerate(d.steps, start=1):
+        fig = plt.figure(figsize=(12, 1.6 * n + 2.2), constrained_layout=True)
+        grid = fig.add_gridspec(n, 3)
+        before = [fig.add_subplot(grid[k, 0]) for k in range(n)]
+        after = [fig.add_subplot(grid[k, 1]) for k in range(n)]
+        _residual_panels(before, s.before, "before")
+        _residual_panels(after, s.after, f"after adding {s.effect}")
+        ax = fig.add_subplot(grid[:, 2])
+        plot_signature(ax, s.effect, s.before, s.evidence)
+        fig.suptitle(f"step {i}: {s.effect} (log10 p {s.evidence.log10_p:.1f}, ΔELPD {s.delta_elpd:.0f} ± "
+                     f"{s.delta_elpd_se:.0f}) — {source}", fontsize=8)
+        path = folder / f"step-{i}-{s.effect}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    fig, axes = plt.subplots(n, 1, figsize=(8, 1.6 * n + 1), squeeze=False, constrained_layout=True)
+    _residual_panels(axes[:, 0], d.final, "final model" + (f" (+ {', '.join(s.effect for s in d.steps)})" if d.steps else " (base)"))
+    fig.suptitle(("unexplained: " + d.unexplained_description if d.unexplained else "nothing significant left")[:160]
+                 + f"\n{source}", fontsize=7)
+    path = folder / "final-residuals.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    paths.append(path)
+    return paths
