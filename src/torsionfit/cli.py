@@ -79,6 +79,7 @@ def _cmd_fit(args) -> int:
         progress=not args.no_progress,
         backend_path=str(out / "chain.h5") if args.resume or args.save_chain else None,
         resume=args.resume,
+        decimate=args.decimate,
     )
     fit = fit_campaign(campaign, options, seed=args.seed)
     doc = write_fit(fit, out)
@@ -94,7 +95,9 @@ def _cmd_diagnose(args) -> int:
     from .diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
     from .io import load_campaign
 
-    campaign = load_campaign(args.campaign)
+    from .io import decimate
+
+    campaign = decimate(load_campaign(args.campaign), args.decimate)
     options = DiagnoseOptions(initial_effects=_parse_effects(args.with_))
     say = (lambda text: None) if args.quiet else (lambda text: print(f"[diagnose] {text}", file=sys.stderr, flush=True))
     result = diagnose(campaign, options, seed=args.seed, progress=say)
@@ -143,6 +146,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--save-chain", action="store_true", help="keep the emcee chain in OUTPUT/chain.h5")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUTPUT/chain.h5")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--decimate", type=int, default=1, metavar="N",
+                   help="fit block means of N consecutive samples (dense benches; recorded in fit.json)")
     p.set_defaults(func=_cmd_fit)
 
     p = sub.add_parser("diagnose", help="close the loop: find what the model misses, add it, report before/after")
@@ -152,6 +157,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--with", dest="with_", action="append", metavar="EFFECT[=VALUE]",
                    help="start from a model with this extension already on (repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--decimate", type=int, default=1, metavar="N",
+                   help="diagnose block means of N consecutive samples (dense benches)")
     p.set_defaults(func=_cmd_diagnose)
     return parser
 

@@ -8,4 +8,5 @@ from ._campaign import (
     Run as Run,
     TransmissionErrorRun as TransmissionErrorRun,
 )
+from ._decimate import decimate as decimate
 from ._manifest import load_campaign as load_campaign, write_campaign as write_campaign

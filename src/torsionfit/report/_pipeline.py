@@ -14,7 +14,7 @@ import numpy as np
 
 from .._errors import InputError
 from ..fit import NoiseOptions, build_problem, fit_map
-from ..io import Campaign
+from ..io import Campaign, decimate
 from ..model import model_with_effects
 from ..units import ANGLE_UNITS
 from ._derived import derived_metrics_for
@@ -40,6 +40,7 @@ class FitOptions:
     laplace_draws: int = 4000
     metric_draws: int = 2000  # draws used for the derived metrics
     lost_motion_pct: float = 3.0
+    decimate: int = 1  # block means of this many samples before fitting (recorded in fit.json)
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,6 +88,7 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
     """Fit ``campaign``; InputError on data that cannot be fitted."""
     if not campaign.runs:
         raise InputError("campaign has no runs to fit")
+    campaign = decimate(campaign, options.decimate)
     kinds = [r.kind for r in campaign.runs]
     model = model_with_effects(kinds, options.effects, campaign.reducer.rated_torque_Nm, free_friction_start=True)
     problem = build_problem(campaign, model, options.noise)
@@ -171,6 +173,7 @@ def fit_json(fit: CampaignFit) -> dict:
         "campaign": str(fit.campaign.path) if fit.campaign.path else None,
         "label": fit.campaign.notes,
         "reducer": {"name": fit.campaign.reducer.name, "rated_torque_Nm": fit.campaign.reducer.rated_torque_Nm},
+        "decimate": fit.options.decimate,
         "model": {"effects": sorted(fit.options.effects), "components": ["elastic", "friction", "geometric"]
                   + (["creep"] if problem.model.creep is not None else [])},
         "metrics": metrics,
