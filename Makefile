@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT ?= out
 
-.PHONY: run test bench clean
+.PHONY: run test bench bench-fit clean
 $(BIN)/.installed: pyproject.toml
 	@test -n "$(PY)" || { echo "no Python >= 3.12 found (see scripts/find-python.sh)"; exit 1; }
 	$(PY) -m venv $(VENV)
@@ -20,6 +20,11 @@ test: $(BIN)/.installed
 
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_hysteresis_scan.py
+
+# the NumPy/SciPy comparison needs scipy, which is not a package dependency
+bench-fit: $(BIN)/.installed
+	$(BIN)/python -m pip install --quiet scipy
+	$(BIN)/python benchmarks/bench_full_fit.py
 
 clean:
 	rm -rf $(VENV) $(OUT)
