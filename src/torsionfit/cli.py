@@ -141,7 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="emcee posterior (default) or the MAP's Laplace approximation (fast screening)")
     p.add_argument("--walkers", type=int, default=None, help="emcee walkers (default max(32, 2·dim+2))")
     p.add_argument("--max-steps", type=int, default=20_000, help="cap on emcee steps; reaching it gives converged: false")
-    p.add_argument("--ar1", choices=("auto", "on", "off"), default="auto", help="AR(1) residuals (auto: runs of ≥ 200 samples)")
+    p.add_argument("--ar1", choices=("auto", "on", "off"), default="auto", help="AR(1) residuals (auto: runs of ≥ 100 samples)")
     p.add_argument("--student-t", type=float, default=None, metavar="DOF", help="Student-t likelihood with DOF degrees of freedom")
     p.add_argument("--save-chain", action="store_true", help="keep the emcee chain in OUTPUT/chain.h5")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUTPUT/chain.h5")

@@ -37,14 +37,14 @@ from .._segments import monotone_segments
 from ._denoise import denoise_torque
 from ._prior import build_priors
 
-AR1_MIN_SAMPLES = 200  # the AR(1) default is on for runs at least this dense
+AR1_MIN_SAMPLES = 100  # the AR(1) default is on for runs at least this dense
 RHO_PRIOR_SD = 1.5  # logit-normal(0, 1.5) prior on each ρ_r
 NOISE_PRIOR_SD = 3.0  # log-normal spread of the noise above the floor
 
 
 @dataclass(frozen=True)
 class NoiseOptions:
-    """Likelihood options. ``ar1=None`` → AR(1) on for runs with ≥ 200 samples."""
+    """Likelihood options. ``ar1=None`` → AR(1) on for runs with ≥ 100 samples."""
 
     ar1: bool | None = None
     # None: Gaussian; a number: Student-t with that many dof. With Student-t the linear
@@ -78,6 +78,15 @@ def check_fittable(campaign: Campaign) -> None:
     if not campaign.runs:
         raise InputError("campaign has no runs to fit")
     for r in campaign.runs:
+        arrays = {"time_s": r.time_s, "torque_Nm": r.torque_Nm, "angle_rad": r.angle_rad} if isinstance(r, HysteresisRun) \
+            else {"output_angle_rad": r.output_angle_rad, "te_rad": r.te_rad}
+        lengths = {k: len(np.asarray(v)) for k, v in arrays.items()}
+        if len(set(lengths.values())) > 1:
+            raise InputError(f"run {r.name!r}: arrays of unequal length {lengths}; expected one length")
+        for k, v in arrays.items():
+            bad = np.flatnonzero(~np.isfinite(np.asarray(v, float)))
+            if bad.size:
+                raise InputError(f"run {r.name!r}: {k} has {bad.size} non-finite (NaN/inf) value(s), first at sample {bad[0]}")
         if len(r) < 10:
             raise InputError(f"run {r.name!r}: {len(r)} samples; a fit needs at least 10")
         if isinstance(r, HysteresisRun):
