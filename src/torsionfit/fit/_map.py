@@ -54,6 +54,16 @@ def _noise_update(problem: FitProblem, u):
 
 
 @eqx.filter_jit
+def _full_values(problem: FitProblem, u):
+    return problem.full_values(u)
+
+
+@eqx.filter_jit
+def _noise_values(problem: FitProblem, u):
+    return problem.noise_values(u)
+
+
+@eqx.filter_jit
 def _physics_jacobian(problem: FitProblem, u):
     n = problem.n_nonlinear
     return jax.jacfwd(lambda a: _lm_residuals(a, (problem, u[n:])))(u[:n])
@@ -69,7 +79,7 @@ def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
     jac = np.asarray(_physics_jacobian(problem, jnp.asarray(u)))
     cov = np.zeros((problem.dim, problem.dim))
     cov[:n, :n] = np.linalg.pinv(jac.T @ jac)
-    sigma, rho = (np.asarray(x) for x in problem.noise_values(jnp.asarray(u)))
+    sigma, rho = (np.asarray(x) for x in _noise_values(problem, jnp.asarray(u)))
     counts = np.array([len(y) for y in problem.y], float)
     s2 = np.exp(2 * u[n:n + problem.n_runs])
     var_log_s = (sigma**2 / np.maximum(s2, 1e-300)) ** 2 / (2 * counts)
@@ -158,6 +168,6 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
         raise RuntimeError("MAP failed from every start: " + "; ".join(m for _, m in records))
     u, ld, ok, message = best
     cov = laplace_covariance(problem, u)
-    values = {k: np.asarray(v) for k, v in problem.full_values(jnp.asarray(u)).items()}
+    values = {k: np.asarray(v) for k, v in _full_values(problem, jnp.asarray(u)).items()}
     return MapResult(problem=problem, run_names=run_names, u=u, cov=cov, values=values,
                      log_density=ld, converged=ok, message=message, starts=records)
