@@ -153,7 +153,9 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
                 name=spec.name,
                 output_angle_rad=phi,
                 te_rad=te,
-                torque_Nm=spec.torque_Nm,
+                # the nominal load is what the torque sensor reads (true load + offset), as the
+                # model's torque_offset assumes
+                torque_Nm=spec.torque_Nm + offset,
                 speed_rpm=spec.speed_rpm,
                 direction=spec.direction,
                 time_s=np.asarray(inp.time_s),
