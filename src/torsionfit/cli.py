@@ -107,6 +107,30 @@ def _cmd_diagnose(args) -> int:
     return 0
 
 
+def _cmd_accept(args) -> int:
+    from .accept import (EXIT_CODE, accept_campaign, accept_folder, batch_exit_code, load_spec, summary_text,
+                         write_accept, write_batch_table)
+    from .io import load_campaign
+    from .report import FitOptions
+
+    spec = load_spec(args.spec)
+    options = FitOptions(effects=_parse_effects(args.with_), sampler=args.sampler, max_steps=args.max_steps,
+                         progress=not args.no_progress, decimate=args.decimate)
+    out = Path(args.output)
+    if args.campaign.is_dir() and not (args.campaign / "campaign.toml").is_file():
+        say = lambda text: print(f"[accept] {text}", file=sys.stderr, flush=True)  # noqa: E731
+        rows = accept_folder(args.campaign, spec, out, options, seed=args.seed, progress=say)
+        paths = write_batch_table(rows, out)
+        counts = {d: sum(r["decision"] == d for r in rows) for d in ("accept", "reject", "indeterminate", "error")}
+        print(f"{len(rows)} units: " + ", ".join(f"{n} {d}" for d, n in counts.items()))
+        print(f"wrote {paths[0]}, {paths[1]}")
+        return batch_exit_code(rows)
+    result = accept_campaign(load_campaign(args.campaign), spec, options, seed=args.seed)
+    print(summary_text(write_accept(result, out)))
+    print(f"wrote {out / 'accept.json'}")
+    return EXIT_CODE[result.decision.decision]
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="torsionfit",
@@ -160,6 +184,28 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--decimate", type=int, default=1, metavar="N",
                    help="diagnose block means of N consecutive samples (dense benches)")
     p.set_defaults(func=_cmd_diagnose)
+
+    p = sub.add_parser(
+        "accept", help="accept / reject / indeterminate against a spec, from the posterior (JCGM 106)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Decide a unit (or every campaign.toml under a folder) against a spec file from the\n"
+                    "posterior probability of conformance p_c; writes OUTPUT/accept.json (a folder: one\n"
+                    "OUTPUT/<unit>/accept.json each and OUTPUT/accept_batch.csv + .json, a row per unit).",
+        epilog="exit codes: 0 accept, 3 reject, 4 indeterminate (retest; also: posterior not converged),\n"
+               "2 bad input. Over a folder: 2 if any unit is in error, else 4 if any is indeterminate,\n"
+               "else 3 if any is rejected, else 0.")
+    p.add_argument("campaign", type=Path, help="campaign manifest (TOML), or a folder of campaigns")
+    p.add_argument("--spec", type=Path, required=True, help="spec file (TOML): p_accept and [[requirement]] tables")
+    p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--sampler", choices=("emcee", "laplace"), default="emcee",
+                   help="emcee posterior (default) or the MAP's Laplace approximation (fast screening)")
+    p.add_argument("--max-steps", type=int, default=20_000, help="cap on emcee steps; reaching it gives indeterminate")
+    p.add_argument("--with", dest="with_", action="append", metavar="EFFECT[=VALUE]",
+                   help="switch a model extension on by hand (repeatable), as for fit")
+    p.add_argument("--decimate", type=int, default=1, metavar="N", help="fit block means of N consecutive samples")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_accept)
     return parser
 
 

@@ -52,6 +52,17 @@ def factor(quantity: str, unit: str, where: str = "") -> float:
     return table[unit]
 
 
+def quantity_of(unit: str, where: str = "") -> str:
+    """The quantity (``"angle"``, ``"stiffness"``, …) ``unit`` measures; InputError naming
+    ``where`` if no quantity has it."""
+    for quantity, table in _QUANTITIES.items():
+        if unit in table:
+            return quantity
+    at = f"{where}: " if where else ""
+    known = "; ".join(f"{q}: {', '.join(t)}" for q, t in _QUANTITIES.items())
+    raise InputError(f"{at}unknown unit {unit!r}; expected one of ({known})")
+
+
 def to_si(values, quantity: str, unit: str, where: str = ""):
     """Convert ``values`` given in ``unit`` to SI."""
     return np.asarray(values, dtype=float) * factor(quantity, unit, where) if not np.isscalar(
@@ -63,6 +74,18 @@ def from_si(values, quantity: str, unit: str, where: str = ""):
     """Convert SI ``values`` to ``unit``."""
     f = factor(quantity, unit, where)
     return float(values) / f if np.isscalar(values) else np.asarray(values, dtype=float) / f
+
+
+def convert(value: float, from_unit: str, to_unit: str, where: str = "") -> float:
+    """``value`` in ``from_unit`` expressed in ``to_unit`` (both of one quantity); InputError
+    naming ``where`` for an unknown unit or units of different quantities."""
+    have, want = quantity_of(from_unit, where), quantity_of(to_unit, where)
+    if have != want:
+        at = f"{where}: " if where else ""
+        raise InputError(f"{at}unit {from_unit!r} is a unit of {have}, but {to_unit!r} (expected) is a unit of {want}")
+    if from_unit == to_unit:
+        return float(value)
+    return from_si(to_si(float(value), have, from_unit), want, to_unit)
 
 
 def rpm_to_rad_per_s(speed_rpm: float) -> float:

@@ -62,16 +62,7 @@ def load_campaign(path) -> Campaign:
     if manifest.is_dir():
         manifest = manifest / MANIFEST_NAME
     shown = str(manifest)
-    if not manifest.is_file():
-        raise InputError(f"{shown}: campaign manifest not found")
-    try:
-        with open(manifest, "rb") as handle:
-            doc = tomllib.load(handle)
-    except tomllib.TOMLDecodeError as err:
-        raise InputError(f"{shown}: TOML syntax error: {err}") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise InputError(f"{shown}: cannot read the manifest ({err})") from None
-
+    doc = _read_toml(manifest, "campaign manifest")
     _check_keys(doc, _TOP_KEYS, shown, "the top level")
     label = doc.get("label", "")
     if not isinstance(label, str):
@@ -103,6 +94,20 @@ def load_campaign(path) -> Campaign:
         for spec in specs
     )
     return Campaign(reducer, instrument, runs, path=manifest.resolve(), notes=label)
+
+
+def _read_toml(path: Path, what: str) -> dict:
+    """The TOML document at ``path``; InputError naming the file if it is missing or unreadable
+    (``what`` names the kind of file, e.g. "campaign manifest")."""
+    if not path.is_file():
+        raise InputError(f"{path}: {what} not found")
+    try:
+        with open(path, "rb") as handle:
+            return tomllib.load(handle)
+    except tomllib.TOMLDecodeError as err:
+        raise InputError(f"{path}: TOML syntax error: {err}") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(f"{path}: cannot read the {what} ({err})") from None
 
 
 def _check_keys(table: dict, allowed, where: str, section: str) -> None:

@@ -3,6 +3,7 @@
 from ._derived import DerivedMetrics as DerivedMetrics, MetricSpec as MetricSpec, derived_metrics_for as derived_metrics_for
 from ._pipeline import (
     CampaignFit as CampaignFit,
+    campaign_model as campaign_model,
     FitOptions as FitOptions,
     fit_campaign as fit_campaign,
     fit_json as fit_json,

@@ -17,7 +17,7 @@ import numpy as np
 from .. import model as m
 from ..bench import five_step_protocol
 from ..io import Campaign
-from ..units import ANGLE_UNITS, STIFFNESS_UNITS
+from ..units import ANGLE_UNITS, SPEED_UNITS, STIFFNESS_UNITS
 
 ARCMIN = ANGLE_UNITS["arcmin"]
 NM_PER_ARCMIN = STIFFNESS_UNITS["Nm/arcmin"]
@@ -121,18 +121,40 @@ class DerivedMetrics(eqx.Module):
             values["friction_torque"],
         ] + [q / ARCMIN for q in parts]
         if self.te_model is not None:
-            te_params = _single_run_params(values, "transmission_error")
             for inp in self.te_inputs:
-                tc = self.te_model.components(te_params, [inp])[0]
-                te = tc["total"] - tc["offset"]  # against the unloaded, friction-free zero
+                te = self._te_twist(values, inp)
                 out.append(jnp.abs(inp.torque_Nm) / jnp.abs(te[0]) / NM_PER_ARCMIN)  # at 180°
                 out.append(jnp.abs(inp.torque_Nm) / jnp.abs(jnp.mean(te[1:])) / NM_PER_ARCMIN)  # revolution mean
         return jnp.stack([jnp.asarray(v, float) for v in out])
+
+    def _te_twist(self, values: dict, inp: m.TEInput) -> jnp.ndarray:
+        """Model TE (rad) of one TE condition against the unloaded, friction-free zero."""
+        tc = self.te_model.components(_single_run_params(values, "transmission_error"), [inp])[0]
+        return tc["total"] - tc["offset"]
 
     @eqx.filter_jit
     def over_draws(self, values_batch: dict) -> jnp.ndarray:
         """(draws, metrics) for a dict of stacked parameter draws."""
         return jax.vmap(self.evaluate)(values_batch)
+
+    @eqx.filter_jit
+    def kd_over_draws(self, values_batch: dict, torque_Nm, speed_rpm, direction) -> jnp.ndarray:
+        """K_d = τ / TE(180°) (N·m/arcmin) of the model at any TE conditions, as ``kd_mean``:
+        (draws, conditions) for stacked parameter draws and 1-D arrays of load torque (N·m),
+        output speed (rpm) and direction (+1 forward, −1 backward). Needs TE runs in the
+        campaign (``te_model``), since only they carry TE-only physics such as speed terms."""
+        if self.te_model is None:
+            raise ValueError("K_d needs a campaign with TE runs")
+        phi, t0 = jnp.asarray([jnp.pi]), jnp.zeros(1)
+        speed_rad_s = jnp.asarray(speed_rpm, float) * SPEED_UNITS["rpm"]
+        conditions = (jnp.asarray(torque_Nm, float), speed_rad_s, jnp.asarray(direction, float))
+
+        def one(values, tau, v, d):
+            te = self._te_twist(values, m.TEInput(phi, t0, tau, v, d))
+            return jnp.abs(tau) / jnp.abs(te[0]) / NM_PER_ARCMIN
+
+        per_draw = jax.vmap(one, in_axes=(None, 0, 0, 0))
+        return jax.vmap(lambda values: per_draw(values, *conditions))(values_batch)
 
 
 def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_pct: float = 3.0) -> DerivedMetrics:

@@ -56,6 +56,9 @@ class CampaignFit:
     rmse_arcsec: dict  # per run, at the MAP
     tree: object = None  # ArviZ DataTree (emcee) or None
     sample_result: object = None
+    #: SI parameter values (name → (draws, ...)) of the draws behind ``metric_draws``, row by
+    #: row: further model quantities of the same draws (e.g. K_d at any condition) use these
+    metric_values: dict | None = None
 
     @property
     def run_names(self) -> list[str]:
@@ -84,13 +87,18 @@ def _values_over_draws(problem, u_batch):
     return jax.vmap(problem.full_values)(u_batch)
 
 
+def campaign_model(campaign: Campaign, options: FitOptions = FitOptions()):
+    """The model :func:`fit_campaign` fits to ``campaign`` with ``options``."""
+    kinds = [r.kind for r in campaign.runs]
+    return model_with_effects(kinds, options.effects, campaign.reducer.rated_torque_Nm, free_friction_start=True)
+
+
 def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: int = 0) -> CampaignFit:
     """Fit ``campaign``; InputError on data that cannot be fitted."""
     if not campaign.runs:
         raise InputError("campaign has no runs to fit")
     campaign = decimate(campaign, options.decimate)
-    kinds = [r.kind for r in campaign.runs]
-    model = model_with_effects(kinds, options.effects, campaign.reducer.rated_torque_Nm, free_friction_start=True)
+    model = campaign_model(campaign, options)
     problem = build_problem(campaign, model, options.noise)
     names = [r.name for r in campaign.runs]
     map_result = fit_map(problem, names, n_starts=options.n_starts, seed=seed)
@@ -139,11 +147,13 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
     if bad.any():
         warnings.warn(f"{bad.sum()} of {len(bad)} draws gave non-finite metrics and were dropped")
         metric_draws = metric_draws[~bad]
+    metric_values = {k: np.asarray(v)[~bad] for k, v in values.items()}
     residuals = problem.residuals(jnp.asarray(map_result.u))
     rmse = {n: float(np.sqrt(np.mean(np.asarray(e) ** 2)) / ARCSEC) for n, e in zip(names, residuals)}
     return CampaignFit(campaign=campaign, options=options, problem=problem, map_result=map_result,
                        draws_u=np.asarray(draws_u), metric_specs=derived.specs, metric_draws=metric_draws,
-                       diagnostics=diagnostics, rmse_arcsec=rmse, tree=tree, sample_result=sample_result)
+                       diagnostics=diagnostics, rmse_arcsec=rmse, tree=tree, sample_result=sample_result,
+                       metric_values=metric_values)
 
 
 def fit_json(fit: CampaignFit) -> dict:

@@ -1,0 +1,139 @@
+"""One unit: fit its campaign, decide against a spec, write ``accept.json`` (DESIGN §5.2)."""
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..report import FitOptions, campaign_model, derived_metrics_for, fit_campaign, summarise
+from ._conformance import conformance, requirement_quantities
+from ._decision import Decision, decide_unit
+from ._envelope import Envelope, envelope_axes, operating_envelope
+from ._spec import Spec, bind_requirements
+
+
+@dataclass(frozen=True, eq=False)
+class UnitAcceptance:
+    """A unit's decision with everything behind it: the fit, each requirement's quantity per
+    draw (``quantities``, metric units) and the operating envelopes of its ``kd`` requirements."""
+
+    spec: Spec
+    bound: tuple
+    fit: object  # report.CampaignFit
+    quantities: np.ndarray  # (draws, requirements)
+    decision: Decision
+    envelopes: tuple[Envelope, ...]
+    seed: int
+
+
+def bind_to_campaign(spec: Spec, campaign, options: FitOptions = FitOptions()):
+    """(``BoundRequirement``s, ``DerivedMetrics``) of ``spec`` for ``campaign`` fitted with
+    ``options`` — checked before any fit, so a wrong metric or unit fails at once."""
+    derived = derived_metrics_for(campaign, campaign_model(campaign, options), options.lost_motion_pct)
+    return bind_requirements(spec, derived.specs, bool(campaign.te_runs)), derived
+
+
+def accept_campaign(campaign, spec: Spec, options: FitOptions = FitOptions(), seed: int = 0,
+                    envelope: bool = True) -> UnitAcceptance:
+    """Fit ``campaign`` (``options``, ``seed``) and decide against ``spec``; with ``envelope``,
+    also map P(K_d ≥ K_req) over torque × speed for every ``kd`` requirement."""
+    bound, derived = bind_to_campaign(spec, campaign, options)
+    fit = fit_campaign(campaign, options, seed=seed)
+    quantities = requirement_quantities(bound, derived, fit.metric_values, fit.metric_draws)
+    d = fit.diagnostics
+    decision = decide_unit(conformance(bound, quantities), [b.requirement.name for b in bound], spec.p_accept,
+                           converged=bool(d["converged"]), not_converged_reason=d.get("reason", ""))
+    envelopes = ()
+    if envelope:
+        reducer = campaign.reducer
+        max_speed = max([reducer.max_speed_rpm or 0.0] + [r.speed_rpm for r in campaign.te_runs])
+        envelopes = tuple(
+            operating_envelope(derived, fit.metric_values, b, spec.p_accept,
+                               *envelope_axes(reducer.rated_torque_Nm, max_speed, b.requirement.torque_range_Nm,
+                                              b.requirement.speed_range_rpm))
+            for b in bound if b.requirement.is_kd)
+    return UnitAcceptance(spec, bound, fit, quantities, decision, envelopes, seed)
+
+
+def _requirement_entry(b, quantity: np.ndarray, p: float, decision: str) -> dict:
+    r = b.requirement
+    entry = {
+        "name": r.name, "p_conform": p, "decision": decision, "limit": r.limit, "unit": r.unit,
+        "metric": r.metric, "bound": r.bound,
+        "limit_in_metric_unit": b.limit_in_metric_unit, "metric_unit": b.metric_unit,
+        "posterior": {**summarise(quantity), "unit": b.metric_unit},
+    }
+    if r.is_kd:
+        entry["torque_Nm"] = list(r.torque_range_Nm)
+        entry["speed_rpm"] = list(r.speed_range_rpm)
+        entry["posterior"]["description"] = "smallest K_d over the region, both directions"
+    return entry
+
+
+def envelope_json(e: Envelope) -> dict:
+    return {
+        "requirement": e.requirement, "k_req": e.k_req, "unit": e.unit, "p_accept": e.p_accept,
+        "torque_Nm": e.torque_Nm.tolist(), "speed_rpm": e.speed_rpm.tolist(),
+        "probability": e.probability.tolist(),
+        "region": {"torque_Nm": list(e.torque_range_Nm), "speed_rpm": list(e.speed_range_rpm)},
+        "description": "probability[i][j] = P(K_d >= k_req) at speed_rpm[i], torque_Nm[j]; "
+                       "K_d = T / TE(180°) of the model, the smaller of the two directions",
+    }
+
+
+def accept_json(result: UnitAcceptance) -> dict:
+    """The ``accept.json`` document (DESIGN §5.2)."""
+    d, fit = result.decision, result.fit
+    campaign = fit.campaign
+    return {
+        "decision": d.decision,
+        "p_conform": d.p_conform,
+        "p_accept": d.p_accept,
+        "consumer_risk": d.consumer_risk,
+        "producer_risk": d.producer_risk,
+        "reason": d.reason,
+        "requirements": [_requirement_entry(b, q, p, dec) for b, q, p, dec in
+                         zip(result.bound, result.quantities.T, d.requirement_p_conform, d.requirement_decisions)],
+        "envelope": [envelope_json(e) for e in result.envelopes],
+        "campaign": str(campaign.path) if campaign.path else None,
+        "label": campaign.notes,
+        "reducer": {"name": campaign.reducer.name, "rated_torque_Nm": campaign.reducer.rated_torque_Nm},
+        "spec": {"path": str(result.spec.path) if result.spec.path else None, "label": result.spec.label,
+                 "p_accept": result.spec.p_accept},
+        "n_draws": d.n_draws,
+        "seed": result.seed,
+        "diagnostics": fit.diagnostics,
+    }
+
+
+def write_accept(result: UnitAcceptance, out_dir, figures: bool = True) -> dict:
+    """Write ``out_dir/accept.json`` (and with ``figures`` the envelope maps in
+    ``out_dir/figures/``); return the document."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = accept_json(result)
+    (out / "accept.json").write_text(json.dumps(doc, indent=2))
+    if figures and result.envelopes:
+        from ._figure import plot_envelope
+
+        for i, e in enumerate(result.envelopes):
+            plot_envelope(e, source=result.fit.campaign.notes or "source not stated",
+                          path=out / "figures" / f"envelope-{i}.png")
+    return doc
+
+
+def summary_text(doc: dict) -> str:
+    """A few lines for the terminal: the decision, p_c per requirement, the reason."""
+    lines = [f"{doc['reducer']['name']}: {doc['decision'].upper()}  (joint p_c {doc['p_conform']:.4g}, "
+             f"p_accept {doc['p_accept']:g})"]
+    for r in doc["requirements"]:
+        lines.append(f"  {r['name']:48s} p_c {r['p_conform']:.4g}  {r['decision']}")
+    if doc["consumer_risk"] is not None:
+        lines.append(f"  specific consumer's risk {doc['consumer_risk']:.3g}")
+    if doc["producer_risk"] is not None:
+        lines.append(f"  specific producer's risk {doc['producer_risk']:.3g}")
+    lines.append(f"  {doc['reason']}")
+    if doc.get("label"):
+        lines.append(f"  data: {doc['label']}")
+    return "\n".join(lines)
