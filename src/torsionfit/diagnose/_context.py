@@ -1,7 +1,7 @@
 """What a residual signature looks at: per run, the residuals of a fitted model, the noise
 model that whitens them, and the variables an effect may depend on."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import equinox as eqx
 import jax.numpy as jnp
@@ -30,6 +30,15 @@ class RunView:
     loading_rate_Nm_per_s: float | None
     sensitivity: np.ndarray  # dθ̂/dτ̂ along the run (rad/N·m), for torque-offset signatures
     design: np.ndarray  # the fit's linear design (offsets, drift, harmonics): nuisance columns
+    eiv_var: np.ndarray  # the fit's errors-in-variables variance per sample, rad²
+    floor: float  # the encoder's quantisation floor, rad
+
+    def renoised(self, residual: np.ndarray) -> "RunView":
+        """This view with its measurement noise re-estimated (``variogram_noise``) from
+        ``residual`` — e.g. the residual with a found periodic error removed, whose fast
+        swings would otherwise pass for noise."""
+        sd, rho = variogram_noise(residual)
+        return replace(self, scale=np.sqrt(self.eiv_var + max(sd, self.floor) ** 2), rho=rho)
 
     def whiten(self, x: np.ndarray) -> np.ndarray:
         """The fit's AR(1) whitening with per-sample scales, on a vector or the columns of a matrix."""
@@ -100,7 +109,7 @@ def fit_context(campaign: Campaign, effects: dict, map_result: MapResult) -> Fit
         # keep the fit's per-sample errors-in-variables part, swap its noise level for the variogram's
         eiv = np.maximum(np.asarray(scales[i]) ** 2 - float(sigma_fit[i]) ** 2, 0.0)
         floor = float(problem.floors[i])
-        noise.append((np.sqrt(eiv + max(sd, floor) ** 2), r))
+        noise.append((np.sqrt(eiv + max(sd, floor) ** 2), r, eiv, floor))
     for i, run in enumerate(campaign.runs):
         y = np.asarray(problem.y[i])
         f = np.asarray(preds[i])
@@ -115,7 +124,7 @@ def fit_context(campaign: Campaign, effects: dict, map_result: MapResult) -> Fit
                 mesh_torque_Nm=np.asarray(mesh[i]), measured_angle_rad=np.asarray(run.angle_rad),
                 output_angle_rad=None, speed_rad_s=0.0, direction=0.0,
                 loading_rate_Nm_per_s=run.loading_rate_Nm_per_s, sensitivity=sens,
-                design=np.asarray(problem.design[i]),
+                design=np.asarray(problem.design[i]), eiv_var=noise[i][2], floor=noise[i][3],
             ))
         else:
             n = len(run)
@@ -127,6 +136,7 @@ def fit_context(campaign: Campaign, effects: dict, map_result: MapResult) -> Fit
                 mesh_torque_Nm=np.asarray(mesh[i]), measured_angle_rad=phi, output_angle_rad=phi,
                 speed_rad_s=run.speed_rpm * 2 * np.pi / 60, direction=float(run.direction),
                 loading_rate_Nm_per_s=None, sensitivity=np.zeros(n), design=np.asarray(problem.design[i]),
+                eiv_var=noise[i][2], floor=noise[i][3],
             ))
     return FitContext(campaign=campaign, effects=dict(effects), map_result=map_result, runs=tuple(views),
                       rated_torque_Nm=campaign.reducer.rated_torque_Nm)

@@ -123,7 +123,7 @@ def _compare(before: Fitted, after: Fitted) -> tuple[float, float]:
 def _signatures(ctx: FitContext, options: DiagnoseOptions, added: set) -> list[tuple[Effect, Evidence]]:
     out = []
     for effect in options.catalog:
-        if effect.name in added or not effect.applicable(ctx):
+        if (effect.name in added and not effect.growable) or not effect.applicable(ctx):
             continue
         out.append((effect, effect.signature(ctx, options.alpha)))
     return out

@@ -31,7 +31,7 @@ def diagnose_json(d: Diagnosis, campaign) -> dict:
              "delta_elpd": s.delta_elpd, "delta_elpd_se": s.delta_elpd_se}
             for s in d.steps
         ],
-        "added": [s.effect for s in d.steps],
+        "added": list(dict.fromkeys(s.effect for s in d.steps)),  # a growable effect may take two steps
         "rejected": [
             {"effect": s.effect, "evidence": _evidence(s.evidence), "rmse_before": s.before.rmse_arcsec,
              "rmse_after": s.after.rmse_arcsec, "delta_elpd": s.delta_elpd, "delta_elpd_se": s.delta_elpd_se}

@@ -1,0 +1,269 @@
+"""Closing the loop (DESIGN §3) on SYNTHETIC campaigns with an undeclared effect in them.
+
+Each campaign comes from the virtual bench ``tests/benches/effects/base.toml`` (two hysteresis
+loops at 2 and 10 N·m/s, two TE runs at 2 and 10 rpm, 1″ angle noise on a 1″ encoder; for speed
+dependence ``one_load.toml``, the same runs with both TE runs forward at one load) with one
+effect switched on in the bench's ``[effects]``/``[truth]``. The campaign is written with
+``write_campaign`` and read back with ``load_campaign``: the manifest never names the effect, so
+``diagnose`` sees only the data. It must find the effect (the first one it adds is the true one;
+another one may follow only when it is physically entangled with the truth, see ``ENTANGLED``)
+and bring the residual down to the noise.
+
+Honesty: the effect's parameters are drawn from a seeded generator within a plausible range
+(every test its own seeds, for the parameters and for the noise); the seeds were fixed before
+looking at the results. ``TORSIONFIT_DIAGNOSE_SEED=<n>`` shifts every seed, to rerun the file on
+other draws.
+
+Cost: every campaign has the shape of ``base.toml`` (same run kinds, same run lengths), so the
+base model compiles once per process and each extension once (~20 s per new model shape on an
+idle two-core machine, ~3 s per fit once compiled); the file runs eleven diagnoses in about seven
+minutes there (most of it compiling).
+"""
+
+import json
+import os
+import re
+import zlib
+from pathlib import Path
+import tomllib
+
+import numpy as np
+import pytest
+
+from torsionfit.bench import EFFECTS, load_bench, simulate
+from torsionfit.diagnose import DiagnoseOptions, diagnose
+from torsionfit.io import load_campaign, write_campaign
+
+pytestmark = pytest.mark.slow
+
+BENCHES = Path(__file__).parent / "benches" / "effects"
+BASE = BENCHES / "base.toml"
+ONE_LOAD = BENCHES / "one_load.toml"  # base.toml with both TE runs forward at 380 N·m
+
+SEED_SHIFT = int(os.environ.get("TORSIONFIT_DIAGNOSE_SEED", "0"))
+
+K = 108.0  # N·m/arcmin, base.toml's stiffness
+RATED = 380.0  # N·m
+#: the residual RMSE a correct model leaves: 1″ angle noise and the 1″ encoder's quantisation
+NOISE_RMSE = float(np.sqrt(1.0 + 1.0 / 12.0))
+#: a fit "at the noise" may exceed it by 20 % (model error of a smooth-knee compliance, TE runs'
+#: input-encoder quantisation, a finite fit)
+AT_NOISE = 1.2 * NOISE_RMSE
+
+#: effects another one may bring along: the same observable, explained two ways
+ENTANGLED = {
+    "stiffness_nonlinearity": {"asymmetry"},  # both reshape the compliance curve
+    "asymmetry": {"stiffness_nonlinearity"},
+    "rate_dependence": set(),
+    "kinematic_error": set(),
+    "speed_dependence": set(),
+    "thermal_drift": set(),
+    "torque_offset": set(),
+}
+
+
+def _seed(*parts) -> int:
+    return zlib.crc32("/".join(map(str, parts)).encode()) + SEED_SHIFT
+
+
+# --- bench files -----------------------------------------------------------------------------
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float, np.floating, np.integer)):
+        return repr(float(v)) if isinstance(v, (float, np.floating)) else str(int(v))
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    raise TypeError(f"no TOML for {v!r}")
+
+
+def _bench_file(path: Path, effects: dict, truth: dict, drop_truth=(), base: Path = BASE) -> Path:
+    """``base`` with ``effects`` switched on and ``truth`` added to (``drop_truth`` removed from)
+    its ``[truth]``, written to ``path``."""
+    doc = tomllib.loads(base.read_text())
+    doc["truth"] = {k: v for k, v in doc["truth"].items() if k not in drop_truth} | truth
+    doc["effects"] = effects
+    lines = [f"{k} = {_toml_value(v)}" for k, v in doc.items() if not isinstance(v, (dict, list))]
+    for k, v in doc.items():
+        if isinstance(v, dict):
+            lines += [f"[{k}]"] + [f"{kk} = {_toml_value(vv)}" for kk, vv in v.items()]
+    for run in doc["runs"]:
+        lines += ["[[runs]]"] + [f"{kk} = {_toml_value(vv)}" for kk, vv in run.items()]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _undeclared_campaign(tmp_path: Path, effects: dict, truth: dict, seed: int, drop_truth=(), base=BASE):
+    """Simulate the bench, write the campaign, check that nothing written names an effect, read
+    it back. Returns (campaign as read back, bench)."""
+    bench = load_bench(_bench_file(tmp_path / "bench.toml", effects, truth, drop_truth, base))
+    assert set(bench.effects) == set(effects)  # switched on in the bench …
+    sim = simulate(bench, seed=seed)
+    out = tmp_path / "campaign"
+    manifest = write_campaign(sim.campaign, out)  # no bench_file: the bench's name is not written
+    text = manifest.read_text()
+    for word in (*EFFECTS, "[effects]", "[truth]", "creep", "ripple", "drift"):
+        assert word not in text, f"the manifest names {word!r}"  # … absent from what is written
+    for csv in out.iterdir():
+        if csv != manifest:
+            header = csv.read_text().split("\n", 2)[:2]
+            assert not any(name in line for name in EFFECTS for line in header)
+    campaign = load_campaign(manifest)
+    assert [r.name for r in campaign.runs] == [r.name for r in sim.campaign.runs]
+    return campaign, bench
+
+
+def _summary(d) -> str:
+    steps = ", ".join(f"{s.effect} (log10 p {s.evidence.log10_p:.1f}, ΔELPD {s.delta_elpd:.1f} ± {s.delta_elpd_se:.1f}, "
+                      f"RMSE {s.before.rmse_arcsec:.2f}″ → {s.after.rmse_arcsec:.2f}″)" for s in d.steps) or "none"
+    rejected = ", ".join(f"{s.effect} (log10 p {s.evidence.log10_p:.1f}, ΔELPD {s.delta_elpd:.1f} ± {s.delta_elpd_se:.1f})"
+                         for s in d.rejected) or "none"
+    sigs = " | ".join(", ".join(f"{e.effect} {e.log10_p:.1f}" for e in it) for it in d.signatures)
+    per_run = ", ".join(f"{k} {v:.2f}″" for k, v in d.final.rmse_per_run.items())
+    return (f"base RMSE {d.base.rmse_arcsec:.2f}″ → final {d.final.rmse_arcsec:.2f}″ ({per_run}); "
+            f"final effects {d.final.effects}; "
+            f"added: {steps}; rejected: {rejected}; signatures (log10 p) per iteration: {sigs}; "
+            f"unexplained: {d.unexplained} {d.unexplained_description!r}")
+
+
+def _diagnose(campaign, seed):
+    d = diagnose(campaign, DiagnoseOptions(), seed=seed)
+    print(_summary(d))
+    return d
+
+
+# --- the seven effects, one at a time --------------------------------------------------------
+def _stiffness_nonlinearity(rng):
+    return ({"stiffness_nonlinearity": "three_segment"},
+            {"k1_Nm_per_arcmin": rng.uniform(0.5, 0.7) * K, "k2_Nm_per_arcmin": rng.uniform(0.95, 1.05) * K,
+             "k3_Nm_per_arcmin": rng.uniform(1.1, 1.3) * K,
+             "t1_Nm": rng.uniform(0.15, 0.25) * RATED, "t2_Nm": rng.uniform(0.5, 0.7) * RATED},
+            ("stiffness_Nm_per_arcmin",))
+
+
+def _rate_dependence(rng):
+    return ({"rate_dependence": True},
+            {"creep_stiffness_Nm_per_arcmin": rng.uniform(500.0, 900.0), "creep_time_s": rng.uniform(20.0, 60.0)}, ())
+
+
+def _kinematic_error(rng):
+    # a cycloidal reducer's once-per-revolution error and its pin-count order
+    amp, phase = rng.uniform(10.0, 30.0, 2), rng.uniform(0.0, 2 * np.pi, 2)
+    return ({"kinematic_error": [1, 39]},
+            {"kin_cos_arcsec": list(amp * np.cos(phase)), "kin_sin_arcsec": list(amp * np.sin(phase))}, ())
+
+
+def _speed_dependence(rng):
+    return ({"speed_dependence": {"viscous": True, "compliance_order": 0}},
+            {"viscous_friction_Nm_per_rpm": rng.uniform(1.0, 3.0)}, ())
+
+
+def _asymmetry(rng):
+    return {"asymmetry": True}, {"compliance_asymmetry": rng.choice([-1.0, 1.0]) * rng.uniform(0.07, 0.13)}, ()
+
+
+def _thermal_drift(rng):
+    per_min = rng.choice([-1.0, 1.0], 4) * rng.uniform(0.5, 2.0, 4)  # one drift per run, ″/min
+    return {"thermal_drift": True}, {"drift_arcsec_per_s": list(per_min / 60.0)}, ()
+
+
+def _torque_offset(rng):
+    return {"torque_offset": True}, {"torque_offset_Nm": rng.choice([-1.0, 1.0]) * rng.uniform(0.01, 0.02) * RATED}, ()
+
+
+EFFECT_CASES = {
+    "stiffness_nonlinearity": _stiffness_nonlinearity,
+    "rate_dependence": _rate_dependence,
+    "kinematic_error": _kinematic_error,
+    "speed_dependence": _speed_dependence,
+    "asymmetry": _asymmetry,
+    "thermal_drift": _thermal_drift,
+    "torque_offset": _torque_offset,
+}
+
+#: campaign per effect: base.toml unless the effect needs more to be told apart. In base.toml the two
+#: TE runs differ in speed *and* load and direction, so a speed effect there only shows as a TE twist
+#: that disagrees with the loops' stiffness — which a creep element explains as well: with viscous
+#: friction 2.5 N·m/rpm on base.toml, diagnose adds rate_dependence (log10 p −150.8, ΔELPD 714.9 ± 62.3,
+#: RMSE 1.68″ → 1.04″) while the speed signature stays at log10 p −0.0 (the base fit matches both TE
+#: levels exactly by moving K). one_load.toml runs both TE runs forward at 380 N·m, so only speed can
+#: make their levels differ (same run lengths: shapes shared with base.toml).
+EFFECT_BENCH = {"speed_dependence": ONE_LOAD}
+
+#: known failures of the implementation (numbers measured with the default seeds)
+KNOWN_FAILURES: dict[str, str] = {}
+
+
+def _check_found(d, effect: str, truth_effects: dict):
+    added = [s.effect for s in d.steps]
+    assert added, f"nothing added: {_summary(d)}"
+    assert added[0] == effect, f"first added {added[0]!r}, not {effect!r}: {_summary(d)}"
+    extra = set(added) - {effect} - ENTANGLED[effect]
+    assert not extra, f"added {sorted(extra)} besides {effect!r}: {_summary(d)}"
+    assert d.final.rmse_arcsec <= 0.7 * d.base.rmse_arcsec, _summary(d)
+    assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
+    if effect == "kinematic_error":
+        assert set(truth_effects["kinematic_error"]) <= set(d.final.effects["kinematic_error"]), _summary(d)
+
+
+@pytest.mark.parametrize("effect", [
+    pytest.param(name, marks=pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES[name]) if name in KNOWN_FAILURES else ())
+    for name in EFFECT_CASES
+])
+def test_diagnose_finds_an_undeclared_effect(tmp_path, effect):
+    rng = np.random.default_rng(_seed("parameters", effect))
+    effects, truth, drop = EFFECT_CASES[effect](rng)
+    campaign, _ = _undeclared_campaign(tmp_path, effects, truth, _seed("noise", effect), drop,
+                                       EFFECT_BENCH.get(effect, BASE))
+    print(effect, truth)
+    d = _diagnose(campaign, _seed("diagnose", effect) % 1000)
+    _check_found(d, effect, effects)
+
+
+# --- a clean campaign ------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", [3, 1234])
+def test_clean_campaign_adds_nothing(tmp_path, seed):
+    campaign, _ = _undeclared_campaign(tmp_path, {}, {}, seed + SEED_SHIFT)
+    d = _diagnose(campaign, seed)
+    assert d.steps == [], _summary(d)
+    assert not d.unexplained, _summary(d)
+    assert d.final.rmse_arcsec <= AT_NOISE
+
+
+# --- two effects at once -------------------------------------------------------------------
+def test_two_effects_are_both_found(tmp_path):
+    rng = np.random.default_rng(_seed("parameters", "two"))
+    e1, t1, _ = _rate_dependence(rng)
+    e2, t2, _ = _kinematic_error(rng)
+    campaign, _ = _undeclared_campaign(tmp_path, e1 | e2, t1 | t2, _seed("noise", "two"))
+    print(t1 | t2)
+    d = _diagnose(campaign, 7)
+    added = [s.effect for s in d.steps]
+    assert set(added) == {"rate_dependence", "kinematic_error"}, _summary(d)
+    assert {1, 39} <= set(d.final.effects["kinematic_error"]), _summary(d)
+    assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
+
+
+# --- an effect outside the catalog -----------------------------------------------------------
+def test_encoder_ripple_is_reported_unexplained(tmp_path):
+    """A sub-division error of the output encoder, periodic in the measured angle: no catalog
+    effect explains it, so nothing may be added and the leftover must be described."""
+    rng = np.random.default_rng(_seed("parameters", "ripple"))
+    amplitude, period = rng.uniform(2.0, 4.0), rng.uniform(40.0, 90.0)  # ″
+    ripple = {"encoder_ripple": {"amplitude_arcsec": amplitude, "period_arcsec": period}}
+    campaign, _ = _undeclared_campaign(tmp_path, ripple, {}, _seed("noise", "ripple"))
+    print(f"ripple {amplitude:.2f}″ every {period:.2f}″")
+    d = _diagnose(campaign, 5)
+    assert d.steps == [], f"a catalog effect was forced in: {_summary(d)}"
+    assert d.unexplained, _summary(d)
+    assert "measured angle" in d.unexplained_description
+    found = [ev for ev in d.leftovers if "measured angle" in ev.description]
+    assert len(found) == 1, _summary(d)
+    assert found[0].details["unit"] == "arcsec"
+    assert found[0].details["period"] == pytest.approx(period, rel=0.05), _summary(d)
+    numbers = [float(x) for x in re.findall(r"period ([0-9.eE+-]+) arcsec", found[0].description)]
+    assert numbers and numbers[0] == pytest.approx(period, rel=0.05)
