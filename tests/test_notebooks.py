@@ -1,0 +1,49 @@
+"""The research notebooks (notebooks/*.ipynb): stored without outputs, and each one executed
+top to bottom with small settings.
+
+Small settings: the test sets ``TORSIONFIT_NOTEBOOK_SMALL=1`` (and, for the measured-data
+notebook, ``TORSIONFIT_NOTEBOOK_DECIMATE``); a notebook reads them and says in its text what its
+full settings are. A notebook that reads ``../shared/data`` declares it in its metadata
+(``"torsionfit": {"needs_shared_data": true}``) and is skipped, with that reason, when the
+folder is absent.
+"""
+
+from pathlib import Path
+
+import pytest
+
+nbformat = pytest.importorskip("nbformat", reason="the notebook tests need the test extra (nbformat)")
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+SHARED_DATA = ROOT.parent / "shared" / "data"
+SMALL_SETTINGS = {"TORSIONFIT_NOTEBOOK_SMALL": "1", "TORSIONFIT_NOTEBOOK_DECIMATE": "64"}
+
+
+def test_there_are_notebooks():
+    assert NOTEBOOKS, "no notebooks under notebooks/"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+def test_notebook_is_stored_without_outputs(path):
+    nb = nbformat.read(path, as_version=4)
+    for i, cell in enumerate(nb.cells):
+        if cell.cell_type == "code":
+            assert not cell.outputs and cell.execution_count is None, f"{path.name}: cell {i} has outputs stored (strip them)"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+def test_notebook_runs(path, monkeypatch):
+    from nbclient import NotebookClient
+
+    nb = nbformat.read(path, as_version=4)
+    if nb.metadata.get("torsionfit", {}).get("needs_shared_data") and not SHARED_DATA.is_dir():
+        pytest.skip(f"{path.name} reads measured data from {SHARED_DATA}, which is absent")
+    for key, value in SMALL_SETTINGS.items():
+        monkeypatch.setenv(key, value)
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    client = NotebookClient(nb, timeout=900, kernel_name="python3", resources={"metadata": {"path": str(ROOT / "notebooks")}})
+    # raises CellExecutionError, with the cell and its traceback, on any failure; the executed
+    # copy is not written back, so the stored notebook stays without outputs
+    client.execute()
