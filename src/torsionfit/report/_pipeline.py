@@ -87,6 +87,11 @@ def _values_over_draws(problem, u_batch):
     return jax.vmap(problem.full_values)(u_batch)
 
 
+@eqx.filter_jit
+def _residuals(problem, u):
+    return problem.residuals(u)  # jitted: eagerly, every scan compiles anew on each call
+
+
 def campaign_model(campaign: Campaign, options: FitOptions = FitOptions()):
     """The model :func:`fit_campaign` fits to ``campaign`` with ``options``."""
     kinds = [r.kind for r in campaign.runs]
@@ -148,7 +153,7 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
         warnings.warn(f"{bad.sum()} of {len(bad)} draws gave non-finite metrics and were dropped")
         metric_draws = metric_draws[~bad]
     metric_values = {k: np.asarray(v)[~bad] for k, v in values.items()}
-    residuals = problem.residuals(jnp.asarray(map_result.u))
+    residuals = _residuals(problem, jnp.asarray(map_result.u))
     rmse = {n: float(np.sqrt(np.mean(np.asarray(e) ** 2)) / ARCSEC) for n, e in zip(names, residuals)}
     return CampaignFit(campaign=campaign, options=options, problem=problem, map_result=map_result,
                        draws_u=np.asarray(draws_u), metric_specs=derived.specs, metric_draws=metric_draws,
