@@ -39,8 +39,6 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
-import datetime as dt  # noqa: E402
-import platform  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
@@ -68,6 +66,7 @@ import jax.monitoring  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import _scipy_pipeline as sp  # noqa: E402
+from _machine import machine  # noqa: E402
 import torsionfit.sample._emcee as tf_emcee  # noqa: E402
 from torsionfit.bench import load_bench, simulate  # noqa: E402
 from torsionfit.fit import NoiseOptions, build_problem, fit_map  # noqa: E402
@@ -281,29 +280,6 @@ def per_call_costs(tf, npy):
 
 
 # --- report ---------------------------------------------------------------------------------
-def machine():
-    try:
-        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo")
-                   if line.startswith("model name"))
-    except (OSError, StopIteration):
-        cpu = platform.processor() or platform.machine()
-    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    import jaxlib
-
-    return {
-        "date": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-        "cpu": f"{cpu}, {os.cpu_count()} logical CPUs ({usable} usable by this process)",
-        "python": platform.python_version(),
-        "versions": f"jax {jax.__version__} (jaxlib {jaxlib.__version__}), numpy {np.__version__}, "
-                    f"scipy {scipy.__version__}, emcee {emcee.__version__}, arviz_stats {arviz_stats.__version__}",
-        "backend": f"{jax.default_backend()} ({', '.join(str(d) for d in jax.devices())}), "
-                   f"float64 {'on' if jax.config.jax_enable_x64 else 'off'}",
-        "threads": f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS')}, "
-                   f"XLA_FLAGS={os.environ.get('XLA_FLAGS', '(unset)')}, persistent JAX compilation cache "
-                   f"{'on: ' + str(jax.config.jax_compilation_cache_dir) if jax.config.jax_compilation_cache_dir else 'off'}",
-    }
-
-
 def f(x, spec=".1f"):
     return "—" if x is None else format(x, spec)
 
@@ -494,7 +470,7 @@ def main(argv=None):
     if output is None and not args.quick:
         output = HERE / "results" / "full_fit.md"
 
-    info = machine()
+    info = machine(scipy=scipy.__version__, emcee=emcee.__version__, arviz_stats=arviz_stats.__version__)
     for k, v in info.items():
         say(f"{k}: {v}")
     campaign = simulate(load_bench(bench_path)).campaign

@@ -22,9 +22,7 @@ The full run writes its table to benchmarks/results/hysteresis_scan.md (``--outp
 """
 
 import argparse
-import datetime as dt
 import os
-import platform
 import statistics
 import sys
 import time
@@ -40,6 +38,7 @@ import torsionfit.model as m
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 import _numpy_model as ref  # noqa: E402
+from _machine import machine  # noqa: E402
 
 RATED_NM = 100.0
 RATE_NM_PER_S = 10.0
@@ -238,26 +237,6 @@ def verdict(rows):
         head = (f"**auto picks `{auto}` on backend `{backend}`; it is the faster method for "
                 f"{N_WALKERS} walkers only at N = {', '.join(ok)}** — mixed result, see below.")
     return [head.replace("e+0", "e"), ""] + lines
-
-
-def machine():
-    try:
-        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo")
-                   if line.startswith("model name"))
-    except (OSError, StopIteration):
-        cpu = platform.processor() or platform.machine()
-    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    import jaxlib
-
-    return {
-        "date": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
-        "cpu": f"{cpu}, {os.cpu_count()} logical CPUs ({usable} usable by this process)",
-        "python": platform.python_version(),
-        "jax": f"{jax.__version__} (jaxlib {jaxlib.__version__}), numpy {np.__version__}",
-        "backend": f"{jax.default_backend()} ({', '.join(str(d) for d in jax.devices())}), "
-                   f"float64 {'on' if jax.config.jax_enable_x64 else 'off'}",
-        "XLA_FLAGS": os.environ.get("XLA_FLAGS", "(unset)"),
-    }
 
 
 def main(argv=None):

@@ -1,9 +1,14 @@
 """Shared pytest fixtures."""
 
 import gzip
+import os
 from pathlib import Path
 
 import pytest
+
+# The CLI keeps JAX's compiled programs on disk (torsionfit/_cache.py); tests stay hermetic and
+# leave the user's cache alone. tests/test_cache.py exercises the cache in a temporary folder.
+os.environ["TORSIONFIT_CACHE_DIR"] = "off"
 
 #: the shared data folder next to the repository (real measured data, never copied in)
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"

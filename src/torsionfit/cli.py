@@ -212,6 +212,9 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    from ._cache import enable_compilation_cache
+
+    enable_compilation_cache()  # TORSIONFIT_CACHE_DIR chooses the folder, =off switches it off
     try:
         return args.func(args)
     except InputError as err:

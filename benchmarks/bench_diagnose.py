@@ -1,0 +1,139 @@
+"""How long `diagnose` takes on a three-run campaign (issue 4: goal under 2 minutes on 2 cores).
+
+The campaign: ``benches/diagnose_three_runs.toml`` — SYNTHETIC, two hysteresis loops at 2 and
+10 N·m/s and one transmission-error run, with a creep element switched on in the bench and
+absent from the manifest. Each repeat runs in a fresh Python process (cold: imports, simulation
+and every JAX compilation included, no persistent compilation cache), simulates the campaign
+with its own noise seed, and diagnoses it; then diagnoses a second campaign of the same shape in
+the same process (warm: the model shapes are compiled). Reported per repeat: wall time of the
+cold diagnosis and of its stages, the share spent compiling (``jax.monitoring``), the warm
+time, and what was found.
+
+    .venv/bin/python benchmarks/bench_diagnose.py               # 3 repeats, writes results/diagnose.md
+    .venv/bin/python benchmarks/bench_diagnose.py --repeats 1 --output /tmp/d.md
+"""
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+BENCH = HERE / "benches" / "diagnose_three_runs.toml"
+GOAL_S = 120.0
+COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
+TRACE_EVENTS = ("/jax/core/compile/jaxpr_trace_duration", "/jax/core/compile/jaxpr_to_mlir_module_duration")
+
+
+def one(seed: int) -> dict:
+    """Runs in the child process: cold diagnosis, then a warm one; returns the timings."""
+    t_start = time.perf_counter()
+    import jax.monitoring
+
+    compile_s = {"xla": 0.0, "trace": 0.0}
+
+    def listen(event, duration, **kwargs):
+        if event == COMPILE_EVENT:
+            compile_s["xla"] += duration
+        elif event in TRACE_EVENTS:
+            compile_s["trace"] += duration
+
+    jax.monitoring.register_event_duration_secs_listener(listen)
+    from torsionfit.bench import load_bench, simulate
+    from torsionfit.diagnose import DiagnoseOptions, diagnose
+
+    t_import = time.perf_counter()
+    bench = load_bench(BENCH)
+    campaign = simulate(bench, seed=seed).campaign
+    t_sim = time.perf_counter()
+    starts = []  # (time, what diagnose says it starts)
+
+    d = diagnose(campaign, DiagnoseOptions(), seed=seed, progress=lambda text: starts.append((time.perf_counter(), text)))
+    t_cold = time.perf_counter()
+    ends = [t for t, _ in starts[1:]] + [t_cold]
+    stages = [(round(end - t, 1), text) for (t, text), end in zip(starts, ends)]
+    cold_compile = dict(compile_s)
+    d2 = diagnose(simulate(bench, seed=seed + 1000).campaign, DiagnoseOptions(), seed=seed)
+    t_warm = time.perf_counter()
+    return {
+        "seed": seed, "samples": [len(r) for r in campaign.runs],
+        "import_s": t_import - t_start, "simulate_s": t_sim - t_import,
+        "cold_diagnose_s": t_cold - t_sim, "cold_total_s": t_cold - t_start,
+        "compile_xla_s": cold_compile["xla"], "compile_trace_lower_s": cold_compile["trace"],
+        "warm_diagnose_s": t_warm - t_cold,
+        "added": [s.effect for s in d.steps], "added_warm": [s.effect for s in d2.steps],
+        "rejected": [s.effect for s in d.rejected],
+        "rmse_base_arcsec": d.base.rmse_arcsec, "rmse_final_arcsec": d.final.rmse_arcsec,
+        "unexplained": d.unexplained, "stages": stages, "load_1min": os.getloadavg()[0],
+    }
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--output", type=Path, default=HERE / "results" / "diagnose.md")
+    ap.add_argument("--child", type=int, default=None, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child is not None:
+        print(json.dumps(one(args.child)))
+        return 0
+
+    sys.path.insert(0, str(HERE))
+    from _machine import machine
+
+    import torsionfit  # noqa: F401  (switches on float64, as every fit does)
+
+    import arviz_stats
+
+    info = machine(arviz_stats=arviz_stats.__version__)
+    for k, v in info.items():
+        print(f"{k}: {v}", flush=True)
+    rows = []
+    for i in range(args.repeats):
+        load = os.getloadavg()[0]
+        wall0 = time.perf_counter()
+        out = subprocess.run([sys.executable, __file__, "--child", str(i + 1)], capture_output=True, text=True, check=True)
+        row = json.loads(out.stdout.strip().splitlines()[-1])
+        row["process_wall_s"] = time.perf_counter() - wall0
+        row["load_before"] = load
+        rows.append(row)
+        print(f"repeat {i + 1}: cold {row['cold_total_s']:.1f} s (diagnose {row['cold_diagnose_s']:.1f} s, XLA compile "
+              f"{row['compile_xla_s']:.1f} s), warm {row['warm_diagnose_s']:.1f} s, added {row['added']}, "
+              f"RMSE {row['rmse_base_arcsec']:.2f}″ → {row['rmse_final_arcsec']:.2f}″, load {load:.1f}", flush=True)
+    cold = [r["cold_total_s"] for r in rows]
+    warm = [r["warm_diagnose_s"] for r in rows]
+    median_cold = statistics.median(cold)
+    verdict = "met" if median_cold < GOAL_S else "NOT met"
+    lines = [
+        "# `diagnose` on a three-run campaign",
+        "",
+        f"Produced by `benchmarks/bench_diagnose.py` ({args.repeats} repeats). Campaign: `{BENCH.relative_to(HERE.parent)}` "
+        f"(SYNTHETIC: two loops, one TE run; {rows[0]['samples']} samples; creep switched on, not declared).",
+        "",
+        *[f"- {k}: {v}" for k, v in info.items()],
+        "",
+        f"**Cold (fresh process, all compilation included): median {median_cold:.1f} s — goal < {GOAL_S:.0f} s {verdict}.** "
+        f"Warm (same shapes already compiled): median {statistics.median(warm):.1f} s.",
+        "",
+        "| repeat | 1-min load before | cold total (s) | of which import + simulate (s) | XLA compile (s) | trace + lower (s) | warm diagnose (s) | added | RMSE base → final (″) |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | --- |",
+    ]
+    for i, r in enumerate(rows, 1):
+        lines.append(f"| {i} | {r['load_before']:.1f} | {r['cold_total_s']:.1f} | {r['import_s'] + r['simulate_s']:.1f} | "
+                     f"{r['compile_xla_s']:.1f} | {r['compile_trace_lower_s']:.1f} | {r['warm_diagnose_s']:.1f} | "
+                     f"{', '.join(r['added']) or 'none'} | {r['rmse_base_arcsec']:.2f} → {r['rmse_final_arcsec']:.2f} |")
+    lines += ["", "Stages of the first repeat (as `diagnose` reports them; each until the next one starts, the last until the end, leftovers search included):", ""]
+    lines += [f"- {s:.1f} s — {text}" for s, text in rows[0]["stages"]]
+    text = "\n".join(lines) + "\n"
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
