@@ -264,6 +264,19 @@ def test_log_density_never_nan(small):
     assert np.all(np.isfinite(lp[len(absurd):]))
 
 
+def test_log_density_in_fixed_batches_pads_without_changing_values(small):
+    """Calls of any size are evaluated in chunks of one batch shape (one compilation): a row's
+    value does not depend on the chunk or the padding it was evaluated with."""
+    logp = _LogProb(small.problem, batch=16)
+    rng = np.random.default_rng(4)
+    rows = small.start.u + 1e-3 * rng.standard_normal((21, small.problem.dim))
+    together = logp(rows)  # one full chunk and one padded chunk of 5 rows
+    assert together.shape == (21,)
+    shifted = logp(np.concatenate([rows[5:], rows[:5]]))  # the last 5 rows now in the full chunk
+    np.testing.assert_allclose(together, np.concatenate([shifted[-5:], shifted[:-5]]), rtol=1e-12)
+    assert np.all(np.isfinite(together))
+
+
 def test_initial_walkers_are_finite_even_from_a_wide_laplace(small):
     cov = np.diag(np.full(small.problem.dim, 4.0))  # very wide: many draws are invalid
     walkers = initial_walkers(small.problem, small.start.u, cov, 32, np.random.default_rng(0))

@@ -118,10 +118,15 @@ batch_log_density = eqx.filter_jit(eqx.filter_vmap(_log_density_one, in_axes=(No
 
 
 class _LogProb:
-    """NumPy wrapper for emcee (``vectorize=True``): (n, dim) → (n,), never NaN."""
+    """NumPy wrapper for emcee (``vectorize=True``): (n, dim) → (n,), never NaN.
 
-    def __init__(self, problem):
+    Every call is evaluated in chunks of ``batch`` rows (the last one padded), so the JAX
+    function compiles for one batch shape only: emcee asks for the whole ensemble once and
+    for half of it at every step."""
+
+    def __init__(self, problem, batch: int | None = None):
         self.problem = problem
+        self.batch = batch
 
     def __call__(self, coords) -> np.ndarray:
         coords = np.atleast_2d(np.asarray(coords, dtype=float))
@@ -129,7 +134,11 @@ class _LogProb:
         # non-finite rows are replaced by a finite one (then rejected) so that no inf or
         # NaN ever enters the JAX function
         safe = np.where(ok[:, None], coords, 0.0)
-        lp = np.array(batch_log_density(self.problem, jnp.asarray(safe)), dtype=float)
+        n = len(safe)
+        batch = self.batch or n
+        padded = np.concatenate([safe, np.repeat(safe[:1], -n % batch, axis=0)])
+        lp = np.concatenate([np.asarray(batch_log_density(self.problem, jnp.asarray(chunk)), dtype=float)
+                             for chunk in np.split(padded, len(padded) // batch)])[:n]
         lp[~ok | ~np.isfinite(lp)] = -np.inf
         return lp
 
@@ -247,12 +256,11 @@ def initial_walkers(problem, u_map, cov, n_walkers: int, rng: np.random.Generato
     log-density is finite. RuntimeError when some walker never gets a finite value."""
     u_map = np.asarray(u_map, dtype=float)
     chol = np.linalg.cholesky(_regularised_cov(cov))
-    logp = _LogProb(problem)
+    logp = _LogProb(problem, batch=max(n_walkers // 2, 1))  # the sampler's batch shape
     walkers = np.empty((n_walkers, u_map.size))
     todo = np.ones(n_walkers, dtype=bool)
     for _ in range(max_rounds):
         walkers[todo] = u_map + rng.standard_normal((int(todo.sum()), u_map.size)) @ chol.T
-        # the whole ensemble is evaluated each round: one batch shape, one compilation
         todo = ~np.isfinite(logp(walkers))
         if not todo.any():
             return walkers
@@ -364,7 +372,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
     resumed = backend is not None and backend.iteration > 0
 
     sampler = emcee.EnsembleSampler(
-        n_walkers, dim, _LogProb(problem), vectorize=True, backend=backend,
+        n_walkers, dim, _LogProb(problem, batch=n_walkers // 2), vectorize=True, backend=backend,
         moves=[(emcee.moves.DEMove(), 0.8), (emcee.moves.StretchMove(), 0.2)],
     )
     tau_prev = None
