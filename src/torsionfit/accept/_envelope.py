@@ -15,8 +15,8 @@ import numpy as np
 REGION_TORQUE_POINTS = 9
 REGION_SPEED_POINTS = 5
 #: points per axis of the envelope map
-ENVELOPE_TORQUE_POINTS = 25
-ENVELOPE_SPEED_POINTS = 15
+ENVELOPE_TORQUE_POINTS = 41
+ENVELOPE_SPEED_POINTS = 31
 #: the envelope's torque axis starts at this fraction of the rated torque (K_d → 0 at no load)
 ENVELOPE_MIN_TORQUE_FRACTION = 0.1
 
