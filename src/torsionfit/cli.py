@@ -194,7 +194,8 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="exit codes: 0 accept, 3 reject, 4 indeterminate (retest; also: posterior not converged),\n"
                "2 bad input. Over a folder: 2 if any unit is in error, else 4 if any is indeterminate,\n"
                "else 3 if any is rejected, else 0.")
-    p.add_argument("campaign", type=Path, help="campaign manifest (TOML), or a folder of campaigns")
+    p.add_argument("campaign", type=Path,
+                   help="campaign manifest (TOML) or a folder holding one; any other folder: every campaign.toml under it")
     p.add_argument("--spec", type=Path, required=True, help="spec file (TOML): p_accept and [[requirement]] tables")
     p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
