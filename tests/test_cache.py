@@ -36,6 +36,7 @@ hits = []
 jax.monitoring.register_event_listener(lambda event, **kw: hits.append(event) if 'cache_hits' in event else None)
 from torsionfit._cache import enable_compilation_cache
 enable_compilation_cache({str(tmp_path / 'cache')!r})
+jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)  # this tiny program compiles fast
 f = jax.jit(lambda x: jnp.cumsum(jnp.sin(x) ** 2) @ jnp.cos(x))
 f(jnp.linspace(0, 1, 4096)).block_until_ready()
 print(len(hits))
