@@ -16,7 +16,7 @@ run: $(BIN)/.installed
 	$(BIN)/python scripts/main_job.py -o $(OUT)
 
 test: $(BIN)/.installed
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_hysteresis_scan.py
