@@ -7,3 +7,11 @@ class InputError(ValueError):
 
     def __init__(self, message: str):
         super().__init__(" ".join(str(message).split()))
+
+
+def error_line(err: BaseException) -> str:
+    """One line for a unit's row: an InputError's own message, else the exception's type and
+    message with whitespace collapsed (a batch must report, not die, on one unit)."""
+    if isinstance(err, InputError):
+        return str(err)
+    return f"{type(err).__name__}: {' '.join(str(err).split())}"

@@ -131,6 +131,35 @@ def _cmd_accept(args) -> int:
     return EXIT_CODE[result.decision.decision]
 
 
+def _cmd_batch(args) -> int:
+    import hashlib
+
+    from .accept import load_spec
+    from .batch import BatchOptions, exit_code, posterior_sample, run_batch, unit_tasks
+    from .report import FitOptions
+
+    spec = load_spec(args.spec) if args.spec else None
+    if args.posterior_sample < 0 or args.group_size < 1:
+        raise InputError("--posterior-sample must be ≥ 0 and --group-size ≥ 1")
+    units = [t.unit for t in unit_tasks(args.folder, args.output)]
+    options = BatchOptions(
+        fit=FitOptions(effects=_parse_effects(args.with_), sampler=args.sampler, max_steps=args.max_steps,
+                       progress=False, decimate=args.decimate),
+        spec=spec, spec_digest=hashlib.sha256(args.spec.read_bytes()).hexdigest() if spec else None,
+        posterior_units=posterior_sample(units, args.posterior_sample, args.seed),
+        figures=args.figures, group_size=args.group_size, seed=args.seed)
+    say = lambda text: print(f"[batch] {text}", file=sys.stderr, flush=True)  # noqa: E731
+    rows = run_batch(args.folder, args.output, options, scheduler=args.scheduler, force=args.force, progress=say)
+    counts = {}
+    for row in rows:
+        key = row.get("decision") or ("error" if row["status"] == "error" else
+                                      "converged" if row.get("converged") else "not converged")
+        counts[key] = counts.get(key, 0) + 1
+    print(f"{len(rows)} units: " + ", ".join(f"{n} {k}" for k, n in counts.items()))
+    print(f"wrote {Path(args.output) / 'batch.csv'}, {Path(args.output) / 'batch.json'}")
+    return exit_code(rows, spec is not None)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="torsionfit",
@@ -207,6 +236,34 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--decimate", type=int, default=1, metavar="N", help="fit block means of N consecutive samples")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_accept)
+
+    p = sub.add_parser(
+        "batch", help="every campaign under a folder: fit, metrics, acceptance; one row per unit",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Fit every campaign.toml under FOLDER (units of one problem shape together), with the\n"
+                    "decision against --spec when given; OUTPUT/<unit>/fit.json (+ accept.json, posterior.nc)\n"
+                    "and OUTPUT/batch.csv + batch.json, a row per unit. A unit in error is a row with its\n"
+                    "message; a re-run skips units already done with the same settings (--force redoes them).",
+        epilog="exit codes: 2 if any unit is in error; with --spec else 4 if any is indeterminate, else 3 if\n"
+               "any is rejected, else 0; without --spec else 4 if any posterior did not converge, else 0.")
+    p.add_argument("folder", type=Path, help="folder: every campaign.toml in it or below is a unit")
+    p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
+    p.add_argument("--spec", type=Path, default=None, help="spec file (TOML): decide every unit (as accept)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of every unit (default 0)")
+    p.add_argument("--sampler", choices=("laplace", "emcee"), default="laplace",
+                   help="every unit's posterior: the MAP's Laplace approximation (default) or emcee")
+    p.add_argument("--posterior-sample", type=int, default=0, metavar="K",
+                   help="K units, chosen by the seed, get the full emcee posterior (default 0)")
+    p.add_argument("--max-steps", type=int, default=20_000, help="cap on emcee steps")
+    p.add_argument("--with", dest="with_", action="append", metavar="EFFECT[=VALUE]",
+                   help="switch a model extension on by hand (repeatable), as for fit")
+    p.add_argument("--decimate", type=int, default=1, metavar="N", help="fit block means of N consecutive samples")
+    p.add_argument("--group-size", type=int, default=16, metavar="G", help="units of one shape fitted together, at most (default 16)")
+    p.add_argument("--figures", action="store_true", help="also write each unit's figures")
+    p.add_argument("--force", action="store_true", help="redo units already done")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the groups on a Dask distributed cluster, e.g. tcp://host:8786 (pip install 'torsionfit[dask]')")
+    p.set_defaults(func=_cmd_batch)
     return parser
 
 

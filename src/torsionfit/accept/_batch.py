@@ -6,7 +6,7 @@ import csv
 import json
 from pathlib import Path
 
-from .._errors import InputError
+from .._errors import InputError, error_line
 from ..io import load_campaign
 from ..io._manifest import MANIFEST_NAME
 from ..report import FitOptions
@@ -30,10 +30,8 @@ def _unit_row(manifest: Path, folder: Path, spec, options, seed, out_dir, figure
     try:
         result = accept_campaign(load_campaign(manifest), spec, options, seed=seed)
         doc = write_accept(result, Path(out_dir) / unit, figures=figures)
-    except InputError as err:
-        return {**row, "decision": ERROR, "reason": str(err)}
     except Exception as err:  # noqa: BLE001 — a production batch must not die on one unit
-        return {**row, "decision": ERROR, "reason": f"{type(err).__name__}: {' '.join(str(err).split())}"}
+        return {**row, "decision": ERROR, "reason": error_line(err)}
     row.update({k: doc[k] for k in ("decision", "p_conform", "consumer_risk", "producer_risk", "reason", "label")})
     row.update({f"p_conform[{r['name']}]": r["p_conform"] for r in doc["requirements"]})
     return row
@@ -56,13 +54,15 @@ def accept_folder(folder, spec, out_dir, options: FitOptions = FitOptions(), see
     return rows
 
 
-def write_batch_table(rows: list[dict], out_dir) -> tuple[Path, Path]:
-    """``out_dir/accept_batch.csv`` and ``.json`` (the same rows); returns both paths."""
+def write_batch_table(rows: list[dict], out_dir, name: str = "accept_batch",
+                      columns: tuple[str, ...] = _COLUMNS) -> tuple[Path, Path]:
+    """``out_dir/<name>.csv`` and ``.json`` (the same rows; ``columns`` first, then every other
+    key sorted); returns both paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    extra = sorted({k for row in rows for k in row} - set(_COLUMNS))
-    columns = list(_COLUMNS) + extra
-    csv_path, json_path = out / "accept_batch.csv", out / "accept_batch.json"
+    extra = sorted({k for row in rows for k in row} - set(columns))
+    columns = list(columns) + extra
+    csv_path, json_path = out / f"{name}.csv", out / f"{name}.json"
     with open(csv_path, "w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=columns)
         writer.writeheader()

@@ -35,11 +35,12 @@ def bind_to_campaign(spec: Spec, campaign, options: FitOptions = FitOptions()):
 
 
 def accept_campaign(campaign, spec: Spec, options: FitOptions = FitOptions(), seed: int = 0,
-                    envelope: bool = True) -> UnitAcceptance:
+                    envelope: bool = True, fit=None) -> UnitAcceptance:
     """Fit ``campaign`` (``options``, ``seed``) and decide against ``spec``; with ``envelope``,
-    also map P(K_d ≥ K_req) over torque × speed for every ``kd`` requirement."""
+    also map P(K_d ≥ K_req) over torque × speed for every ``kd`` requirement. ``fit``: a
+    ``CampaignFit`` of this campaign with these options already made (``torsionfit.batch``)."""
     bound, derived = bind_to_campaign(spec, campaign, options)
-    fit = fit_campaign(campaign, options, seed=seed)
+    fit = fit_campaign(campaign, options, seed=seed) if fit is None else fit
     quantities = requirement_quantities(bound, derived, fit.metric_values, fit.metric_draws)
     d = fit.diagnostics
     decision = decide_unit(conformance(bound, quantities), [b.requirement.name for b in bound], spec.p_accept,

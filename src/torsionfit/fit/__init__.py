@@ -3,9 +3,13 @@
 from ._denoise import denoise_torque as denoise_torque
 from ._map import (
     MapResult as MapResult,
+    best_start as best_start,
     fit_map as fit_map,
+    iid_noise as iid_noise,
     laplace_covariance as laplace_covariance,
+    laplace_from_parts as laplace_from_parts,
     log_density as log_density,
+    map_starts as map_starts,
 )
 from ._prior import build_priors as build_priors, first_look_stiffness as first_look_stiffness
 from ._problem import (

@@ -74,12 +74,19 @@ def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
     whitened residuals and prior pseudo-residuals), the asymptotic variances for the noise
     parameters (var log σ ≈ 1/2N, var ρ ≈ (1 − ρ²)/N, mapped to s and logit ρ and capped by
     their priors). The two blocks are taken as uncorrelated, as they are asymptotically."""
-    u = np.asarray(u)
+    u = jnp.asarray(u)
+    sigma, rho = _noise_values(problem, u)
+    return laplace_from_parts(problem, u, _physics_jacobian(problem, u), sigma, rho)
+
+
+def laplace_from_parts(problem: FitProblem, u, jac, sigma, rho) -> np.ndarray:
+    """:func:`laplace_covariance` from its parts at u: the physics Jacobian ``jac`` and the noise
+    values (σ_r, ρ_r) — computed for many units at once by ``torsionfit.batch``."""
+    u, jac = np.asarray(u), np.asarray(jac)
+    sigma, rho = np.asarray(sigma), np.asarray(rho)
     n = problem.n_nonlinear
-    jac = np.asarray(_physics_jacobian(problem, jnp.asarray(u)))
     cov = np.zeros((problem.dim, problem.dim))
     cov[:n, :n] = np.linalg.pinv(jac.T @ jac)
-    sigma, rho = (np.asarray(x) for x in _noise_values(problem, jnp.asarray(u)))
     counts = np.array([len(y) for y in problem.y], float)
     s2 = np.exp(2 * u[n:n + problem.n_runs])
     var_log_s = (sigma**2 / np.maximum(s2, 1e-300)) ** 2 / (2 * counts)
@@ -133,6 +140,33 @@ def _message(result) -> str:
         return f"optimistix result {result}"
 
 
+def map_starts(problem: FitProblem, n_starts: int, seed: int) -> np.ndarray:
+    """(n_starts, n_nonlinear) starting points: the prior centre, then draws around it."""
+    rng = np.random.default_rng(seed)
+    prior_mean, prior_sd = np.asarray(problem.prior_mean), np.asarray(problem.prior_sd)
+    starts = [prior_mean.copy()]
+    for _ in range(n_starts - 1):
+        starts.append(prior_mean + 0.7 * prior_sd * rng.standard_normal(problem.n_nonlinear))
+    return np.stack(starts)
+
+
+def iid_noise(problem: FitProblem) -> jnp.ndarray:
+    """The first pass's noise block: prior noise levels, ρ ≈ 0 (iid)."""
+    return jnp.asarray(np.concatenate([np.asarray(problem.noise_prior_mean), np.full(problem.n_ar1, -30.0)]))
+
+
+def best_start(us, lds, oks, messages):
+    """(u, log density, converged, message) of the start with the highest finite log density
+    (the first on ties); RuntimeError when no start is finite."""
+    best = None
+    for u, ld, ok, message in zip(us, lds, oks, messages):
+        if np.isfinite(ld) and (best is None or ld > best[1]):
+            best = (np.asarray(u), float(ld), bool(ok), message)
+    if best is None:
+        raise RuntimeError("MAP failed from every start: " + "; ".join(messages))
+    return best
+
+
 def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int = 0,
             max_steps: int = 300, noise_passes: int = 3, rtol: float = 1e-8,
             atol: float = 1e-10) -> MapResult:
@@ -141,17 +175,10 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     increments, and a fit from far away can match the loop's shape but not its level);
     between passes the noise level and AR(1) coefficient are re-estimated in closed form."""
     run_names = tuple(run_names or (f"run{i}" for i in range(problem.n_runs)))
-    rng = np.random.default_rng(seed)
-    n = problem.n_nonlinear
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
-    prior_mean, prior_sd = np.asarray(problem.prior_mean), np.asarray(problem.prior_sd)
-    starts = [prior_mean.copy()]
-    for _ in range(n_starts - 1):
-        starts.append(prior_mean + 0.7 * prior_sd * rng.standard_normal(n))
-    iid = jnp.asarray(np.concatenate([np.asarray(problem.noise_prior_mean), np.full(problem.n_ar1, -30.0)]))
-
-    best, records = None, []
-    for start in starts:
+    iid = iid_noise(problem)
+    us, lds, oks, messages = [], [], [], []
+    for start in map_starts(problem, n_starts, seed):
         u_phys, u_noise = jnp.asarray(start), iid
         ok, message = True, ""
         for _ in range(noise_passes):
@@ -160,14 +187,12 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
             message = _message(result)
             u_noise = _noise_update(problem, jnp.concatenate([u_phys, u_noise]))
         u = jnp.concatenate([u_phys, u_noise])
-        ld = float(log_density(problem, u))
-        records.append((ld, message))
-        if np.isfinite(ld) and (best is None or ld > best[1]):
-            best = (np.asarray(u), ld, ok, message)
-    if best is None:
-        raise RuntimeError("MAP failed from every start: " + "; ".join(m for _, m in records))
-    u, ld, ok, message = best
+        us.append(u)
+        lds.append(float(log_density(problem, u)))
+        oks.append(ok)
+        messages.append(message)
+    u, ld, ok, message = best_start(us, lds, oks, messages)
     cov = laplace_covariance(problem, u)
     values = {k: np.asarray(v) for k, v in _full_values(problem, jnp.asarray(u)).items()}
     return MapResult(problem=problem, run_names=run_names, u=u, cov=cov, values=values,
-                     log_density=ld, converged=ok, message=message, starts=records)
+                     log_density=ld, converged=ok, message=message, starts=list(zip(lds, messages)))

@@ -98,15 +98,28 @@ def campaign_model(campaign: Campaign, options: FitOptions = FitOptions()):
     return model_with_effects(kinds, options.effects, campaign.reducer.rated_torque_Nm, free_friction_start=True)
 
 
-def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: int = 0) -> CampaignFit:
-    """Fit ``campaign``; InputError on data that cannot be fitted."""
+def prepare_fit(campaign: Campaign, options: FitOptions = FitOptions()):
+    """(decimated campaign, model, problem) that :func:`fit_campaign` fits; InputError on data
+    that cannot be fitted."""
     if not campaign.runs:
         raise InputError("campaign has no runs to fit")
     campaign = decimate(campaign, options.decimate)
     model = campaign_model(campaign, options)
-    problem = build_problem(campaign, model, options.noise)
+    return campaign, model, build_problem(campaign, model, options.noise)
+
+
+def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: int = 0) -> CampaignFit:
+    """Fit ``campaign``; InputError on data that cannot be fitted."""
+    campaign, model, problem = prepare_fit(campaign, options)
+    map_result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed)
+    return finish_fit(campaign, options, model, problem, map_result, seed)
+
+
+def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_result, seed: int) -> CampaignFit:
+    """Everything after the MAP: posterior (emcee or Laplace draws), derived metrics, RMSE —
+    for a ``map_result`` of ``problem`` (``prepare_fit``) found one unit at a time or many at
+    once (``torsionfit.batch``)."""
     names = [r.name for r in campaign.runs]
-    map_result = fit_map(problem, names, n_starts=options.n_starts, seed=seed)
     rng = np.random.default_rng(seed)
     tree = sample_result = None
     if options.sampler == "emcee":
