@@ -61,22 +61,44 @@ _MAX_POINTS = 3000  # points per curve in a figure
 _BAND_DRAWS = 200  # posterior draws behind a band
 
 
-def _component_draws(problem, u_batch, run_index: int, idx):
-    """Components of one run at sample indices ``idx`` for each draw (dict of (draws, n))."""
+def components_over_draws(problem, u_batch, idx_by_run: dict) -> dict:
+    """Components of several runs for each draw, in one compiled pass: ``idx_by_run`` maps a
+    run index to the sample indices wanted; returns run index → dict of (draws, n) arrays
+    (with ``drive_torque`` for hysteresis runs)."""
+    import jax.numpy as jnp
+
+    runs = tuple(sorted(idx_by_run))
+    idx = tuple(jnp.asarray(idx_by_run[r]) for r in runs)
+    out = _components_at(problem, jnp.asarray(u_batch), runs, idx)
+    return {r: {k: np.asarray(v) for k, v in d.items()} for r, d in zip(runs, out)}
+
+
+def _components_at(problem, u_batch, runs: tuple, idx: tuple):
     import equinox as eqx
     import jax
     import jax.numpy as jnp
 
     @eqx.filter_jit
-    def one(problem, u):
-        comps = problem.model.components(problem.full_values(u), problem.corrected_inputs(u))[run_index]
-        drive = problem.corrected_inputs(u)[run_index]
-        out = {k: v[idx] for k, v in comps.items() if jnp.ndim(v)}
-        if hasattr(drive, "torque_Nm") and jnp.ndim(drive.torque_Nm):
-            out["drive_torque"] = drive.torque_Nm[idx]
-        return out
+    def over_draws(problem, u_batch, idx):
+        def one(u):
+            inputs = problem.corrected_inputs(u)
+            comps = problem.model.components(problem.full_values(u), inputs)
+            out = []
+            for r, ix in zip(runs, idx):
+                d = {k: v[ix] for k, v in comps[r].items() if jnp.ndim(v)}
+                if hasattr(inputs[r], "torque_Nm") and jnp.ndim(inputs[r].torque_Nm):
+                    d["drive_torque"] = inputs[r].torque_Nm[ix]
+                out.append(d)
+            return out
 
-    return {k: np.asarray(v) for k, v in jax.lax.map(lambda u: one(problem, u), jnp.asarray(u_batch)).items()}
+        return jax.lax.map(one, u_batch)
+
+    return over_draws(problem, u_batch, idx)
+
+
+def component_draws(problem, u_batch, run_index: int, idx):
+    """Components of one run at sample indices ``idx`` for each draw (dict of (draws, n))."""
+    return components_over_draws(problem, u_batch, {run_index: idx})[run_index]
 
 
 def _band(ax, x, draws, color, label=None, alpha=0.25):
@@ -101,7 +123,7 @@ def write_fit_figures(fit, folder) -> list:
     for i, run in enumerate(fit.campaign.runs):
         n = len(run)
         idx = np.unique(np.linspace(0, n - 1, min(n, _MAX_POINTS)).astype(int))
-        comps = _component_draws(fit.problem, u, i, idx)
+        comps = component_draws(fit.problem, u, i, idx)
         offset = comps["offset"]
         total = comps["total"] - offset
         noise = rng.normal(0.0, float(sigma[i]), total.shape)

@@ -1,0 +1,47 @@
+"""What every paper figure shares: the SYNTHETIC label, units, saving as PNG and PDF."""
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .._published import SYNTHETIC_LABEL  # noqa: E402
+
+FOOTER = f"{SYNTHETIC_LABEL} (Cheng et al. 2023, Tables 4 and 6); not the paper's measurements — torsionfit paper"
+REDUCER_TITLE = {"paper-small": "small reducer (T_r = 1 N·m)", "paper-large": "large reducer (T_r = 380 N·m)"}
+ARCMIN_PER_DEG = 60.0
+
+
+def figure(ncols: int = 1, nrows: int = 1, width: float = 6.0, height: float = 4.4, **kw):
+    """A figure with room for the footer label."""
+    fig, axes = plt.subplots(nrows, ncols, figsize=(width * ncols, height * nrows), squeeze=False, **kw)
+    fig.subplots_adjust(bottom=0.16 if nrows == 1 else 0.1, top=0.82 if nrows == 1 else 0.9)
+    return fig, axes
+
+
+def save(fig, out_dir, stem: str, title: str) -> list[Path]:
+    """Title, footer label, ``out_dir/stem.png`` and ``.pdf``; closes the figure."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fig.suptitle(title, fontsize=10)
+    fig.text(0.5, 0.01, FOOTER, ha="center", va="bottom", fontsize=7, color="0.3")
+    paths = [out / f"{stem}.png", out / f"{stem}.pdf"]
+    fig.savefig(paths[0], dpi=120)
+    fig.savefig(paths[1])
+    plt.close(fig)
+    return paths
+
+
+def band(ax, x, draws, color, label=None, alpha=0.25, lw=1.0, ls="-"):
+    """Median line and central 95 % band of ``draws`` (draws, points) along ``x``."""
+    lo, mid, hi = np.percentile(np.asarray(draws), [2.5, 50, 97.5], axis=0)
+    ax.fill_between(x, lo, hi, color=color, alpha=alpha, lw=0)
+    ax.plot(x, mid, ls, color=color, lw=lw, label=label)
+
+
+def per_deg(k_Nm_per_arcmin):
+    """N·m/arcmin → the paper's N·m/°."""
+    return np.asarray(k_Nm_per_arcmin) * ARCMIN_PER_DEG
