@@ -98,6 +98,8 @@ def main(argv=None) -> int:
     import arviz_stats
 
     info = machine(arviz_stats=arviz_stats.__version__)
+    info["threads"] = info["threads"].split(", persistent")[0] + (
+        ", persistent JAX compilation cache: each repeat's two processes share a fresh temporary folder")
     for k, v in info.items():
         print(f"{k}: {v}", flush=True)
     def child(seed, cache):
