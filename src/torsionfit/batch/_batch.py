@@ -48,15 +48,18 @@ def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler
             rows[task.unit] = row
     say(f"{len(tasks)} units: {len(rows)} already done, {len(todo)} to do")
     with executor(scheduler) as run_map:
-        shapes = run_map(partial(unit_shape, options=options), todo)
+        shapes = list(run_map(partial(unit_shape, options=options), todo))
         for task, (_, err_row) in zip(todo, shapes):
             if err_row is not None:  # a unit in error is told in its folder too
                 rows[task.unit] = err_row
                 write_row(task, err_row, options)
         groups = [[todo[i] for i in g] for g in group_by_shape([k for k, _ in shapes], options.group_size)]
         say(f"{len(groups)} groups of up to {options.group_size} units of one shape")
-        for group, group_rows in zip(groups, run_map(partial(fit_group, options=options), groups)):
+        results = run_map(partial(fit_group, options=options), groups)
+        for n, (group, group_rows) in enumerate(zip(groups, results), start=1):
             rows.update({t.unit: r for t, r in zip(group, group_rows)})
+            failed = sum(r["status"] == ERROR for r in group_rows)
+            say(f"group {n}/{len(groups)}: {len(group)} units done" + (f", {failed} in error" if failed else ""))
     ordered = [rows[t.unit] for t in tasks]
     write_batch_table(ordered, out_dir, name=TABLE_NAME, columns=tuple(c for c in COLUMNS if any(c in r for r in ordered)))
     return ordered

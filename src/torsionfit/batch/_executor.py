@@ -1,13 +1,14 @@
 """Where the work runs: this process, or a Dask distributed cluster (``--scheduler ADDRESS``).
-An executor maps a picklable function over a list and returns the results in order."""
+An executor maps a picklable function over a list and yields the results in order, each as
+soon as it (and those before it) are done."""
 
 from contextlib import contextmanager
 
 from .._errors import InputError
 
 
-def local_map(fn, items: list) -> list:
-    return [fn(x) for x in items]
+def local_map(fn, items: list):
+    return (fn(x) for x in items)
 
 
 @contextmanager
@@ -27,7 +28,8 @@ def executor(scheduler: str | None = None, timeout_s: float = 30.0):
     except (OSError, TimeoutError, ValueError) as err:
         raise InputError(f"--scheduler {scheduler}: cannot reach a Dask scheduler ({' '.join(str(err).split())})") from None
     with client:
-        def dask_map(fn, items: list) -> list:
-            return client.gather(client.map(fn, items, pure=False))
+        def dask_map(fn, items: list):
+            futures = client.map(fn, items, pure=False)
+            return (future.result() for future in futures)
 
         yield dask_map
