@@ -164,8 +164,9 @@ def _cmd_paper(args) -> int:
     from .paper import paper_settings, run_paper
 
     say = (lambda text: None) if args.quiet else (lambda text: print(f"[paper] {text}", file=sys.stderr, flush=True))
-    command = "torsionfit paper -o " + str(args.output) + (" --quick" if args.quick else "")
-    doc = run_paper(args.output, paper_settings(args.quick, args.seed), args.data, say, command)
+    command = " ".join(["torsionfit paper -o DIR"] + (["--quick"] if args.quick else []) + ([f"--seed {args.seed}"] if args.seed else [])
+                       + ([f"--sampler {args.sampler}"] if args.sampler else []))
+    doc = run_paper(args.output, paper_settings(args.quick, args.seed, args.sampler), args.data, say, command)
     print(f"max deviation from the published tables {100 * doc['max_relative_deviation']:.3f} %; "
           f"wrote {args.output / 'tables.json'}, {args.output / 'README.md'}, {len(doc['figures'])} figure files")
     return 0
@@ -280,6 +281,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
     p.add_argument("--quick", action="store_true", help="quick settings: Laplace approximation, slowest loop only, decimated, small grid (tests)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--sampler", choices=("laplace", "emcee"), default=None,
+                   help="posterior of the fits: the MAP's Laplace approximation (default) or emcee (hours on 2 cores)")
     p.add_argument("--data", type=Path, default=None, help="folder holding paper-small/ and paper-large/ (default: the checkout's data/)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=_cmd_paper)

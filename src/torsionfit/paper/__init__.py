@@ -35,6 +35,11 @@ from ._published import (
     published as published,
 )
 from ._reproduction import Reproduction as Reproduction, default_data_dir as default_data_dir, derived_seed as derived_seed
-from ._run import figure_script as figure_script, make_figures as make_figures, run_paper as run_paper
+from ._run import (
+    figure_script as figure_script,
+    make_figures as make_figures,
+    run_paper as run_paper,
+    write_page as write_page,
+)
 from ._settings import FULL as FULL, QUICK as QUICK, PaperSettings as PaperSettings, paper_settings as paper_settings
 from ._tables import reproduce_tables as reproduce_tables, reproduced_value as reproduced_value

@@ -50,6 +50,7 @@ class Reproduction:
             if not (self.data_dir / name / "campaign.toml").is_file():
                 raise InputError(f"{self.data_dir / name / 'campaign.toml'}: bundled campaign not found; "
                                  f"give the folder holding paper-small/ and paper-large/ with --data")
+        self.show_progress = progress is not None
         self.progress = progress or (lambda text: None)
         self.timings: dict[str, float] = {}
         self._cache: dict = {}
@@ -96,7 +97,7 @@ class Reproduction:
 
     def _fit(self, campaign, options_name: str, tag: str):
         """Fit ``campaign`` with the model of bundled campaign ``options_name`` (:meth:`model_effects`)."""
-        options = self.settings.fit_options(self.model_effects(options_name), options_name)
+        options = self.settings.fit_options(self.model_effects(options_name), options_name, self.show_progress)
         return fit_campaign(self.fitted_runs(campaign), options, seed=derived_seed(self.settings.seed, tag))
 
     def fit(self, name: str):

@@ -46,9 +46,20 @@ def run_paper(out_dir, settings: PaperSettings, data_dir=None, progress=None, co
     doc["runtime_s"] = {"total": time.perf_counter() - t0, **repro.timings}
     out.mkdir(parents=True, exist_ok=True)
     (out / "tables.json").write_text(json.dumps(doc, indent=2, ensure_ascii=False))
+    write_page(out, command)
+    return doc
+
+
+def write_page(out_dir, command: str = "torsionfit paper") -> Path:
+    """``out_dir/README.md``, the comparison page, from ``out_dir/tables.json`` alone."""
+    out = Path(out_dir)
+    source = out / "tables.json"
+    if not source.is_file():
+        raise InputError(f"{source}: not found; run torsionfit paper -o {out} first")
+    doc = json.loads(source.read_text())
     lines = [(f.__name__, _one_line(f)) for f in FIGURES.values()]
     (out / "README.md").write_text(comparison_page(doc, lines, command))
-    return doc
+    return out / "README.md"
 
 
 def figure_script(key: str, argv=None) -> int:

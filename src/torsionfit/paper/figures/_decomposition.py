@@ -27,7 +27,7 @@ def fig02_decomposition(repro, out_dir):
     offset = np.median(comps["offset"], axis=0)
     fig, axes = figure(3, width=5.0)
     ax_loop, ax_parts, ax_bar = axes[0]
-    ax_loop.plot(np.asarray(run.torque_Nm)[idx], _arcmin(np.asarray(run.angle_rad)[idx] - offset), ".", ms=1.5,
+    ax_loop.plot(np.asarray(run.torque_Nm)[idx], _arcmin(np.asarray(run.angle_rad)[idx] - offset), ".", ms=1.5, rasterized=True,
                  color="0.6", label="measured")
     band(ax_loop, tau, _arcmin(comps["total"] - comps["offset"]), "k", label="model, median and 95 % band")
     ax_loop.set_xlabel("torque (N·m)")

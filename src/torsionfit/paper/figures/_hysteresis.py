@@ -37,9 +37,9 @@ def fig01_protocol(repro, out_dir):
     label_level = (0.5, 0.5, -0.5, -0.5, 0.5)
     for k in range(5):
         sel = step == k
-        ax_t.plot(t[sel], tau[sel], ".", ms=1, color=STEP_COLORS[k])
+        ax_t.plot(t[sel], tau[sel], ".", ms=1, color=STEP_COLORS[k], rasterized=True)
         ax_t.text((k + 0.5) * step_s, label_level[k] * rated, f"({k + 1})", ha="center", fontsize=9, color=STEP_COLORS[k])
-        ax_loop.plot(tau[sel], theta[sel], ".", ms=1, color=STEP_COLORS[k], label=f"step {k + 1}")
+        ax_loop.plot(tau[sel], theta[sel], ".", ms=1, color=STEP_COLORS[k], label=f"step {k + 1}", rasterized=True)
     ax_t.axhline(0, color="0.8", lw=0.5)
     ax_t.set_xlabel("time (s)")
     ax_t.set_ylabel("output torque τ (N·m)")
@@ -71,7 +71,7 @@ def _loops(repro, out_dir, name: str, reducer: str, number: int):
         got = reproduced_value(repro.data_metrics(name), p)
         label = f"{p.condition}: K_s {got:.5g} N·m/° (published {p.value_Nm_per_deg:g})"
         for a in (ax, zoom):
-            a.plot(tau, theta, ".", ms=1, color=color, label=label)
+            a.plot(tau, theta, ".", ms=1, color=color, label=label, rasterized=True)
         theta_r = rated / (got / 60.0)
         zoom.plot([rated], [theta_r], "o", mfc="none", color=color, ms=8)
     zoom.set_xlim(0.9 * rated, 1.01 * rated)

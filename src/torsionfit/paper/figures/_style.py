@@ -30,7 +30,7 @@ def save(fig, out_dir, stem: str, title: str) -> list[Path]:
     fig.text(0.5, 0.01, FOOTER, ha="center", va="bottom", fontsize=7, color="0.3")
     paths = [out / f"{stem}.png", out / f"{stem}.pdf"]
     fig.savefig(paths[0], dpi=120)
-    fig.savefig(paths[1])
+    fig.savefig(paths[1], dpi=150)  # the rasterized dense scatter
     plt.close(fig)
     return paths
 

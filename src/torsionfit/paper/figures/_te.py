@@ -20,7 +20,7 @@ def _te(repro, out_dir, name: str, reducer: str, number: int):
     for color, p in zip(SPEED_COLORS, published("table6", reducer)):
         run = next(r for r in campaign.te_runs if r.name == p.run)
         phi = np.degrees(np.asarray(run.output_angle_rad)) % 360.0
-        ax.plot(phi, from_si(np.asarray(run.te_rad), "angle", "arcmin"), ".", ms=1.5, color=color)
+        ax.plot(phi, from_si(np.asarray(run.te_rad), "angle", "arcmin"), ".", ms=1.5, color=color, rasterized=True)
         comps = repro.run_components(name)[p.run]
         fitted_phi = np.degrees(np.asarray(next(r for r in fit.campaign.te_runs if r.name == p.run).output_angle_rad))
         x = fitted_phi[comps["index"]] % 360.0

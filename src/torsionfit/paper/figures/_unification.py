@@ -21,7 +21,7 @@ def fig04_te_on_loop(repro, out_dir):
         tau = np.asarray(run.torque_Nm)
         theta = from_si(np.asarray(run.angle_rad) - run.angle_rad[0], "angle", "arcmin")
         near = tau > 0.6 * rated
-        ax.plot(tau[near], theta[near], ".", ms=1.5, color="0.6", label=f"loop at {run.loading_rate_Nm_per_s:g} N·m/s (data)")
+        ax.plot(tau[near], theta[near], ".", ms=1.5, color="0.6", rasterized=True, label=f"loop at {run.loading_rate_Nm_per_s:g} N·m/s (data)")
         metrics = repro.data_metrics(name)
         for marker, p in zip(SPEED_MARKERS, published("table6", reducer)):
             te = metrics[p.run]["te_180"]["value"]
