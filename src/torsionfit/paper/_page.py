@@ -22,7 +22,12 @@ def _table_section(doc: dict) -> list[str]:
             inside = {True: "yes", False: "no", None: "—"}[r.get("published_in_hdi95")]
             lines.append(f"| {table[-1]} | {r['reducer']} | {r['condition']} | {r['published']:g} | {_fmt(r['reproduced'])} | "
                          f"{100 * r['relative_deviation']:+.3f} % | {_interval(r['hdi95'])} | {inside} |")
-    lines += ["", f"Largest deviation: **{100 * doc['max_relative_deviation']:.3f} %** (the issue asks for ≤ 1 %).", "",
+    rows = doc["table4"] + doc["table6"]
+    judged = [r["published_in_hdi95"] for r in rows if r.get("published_in_hdi95") is not None]
+    lines += ["", f"Largest deviation: **{100 * doc['max_relative_deviation']:.3f} %** (the issue asks for ≤ 1 %). "
+              f"The published value — the calibration's noise-free target — lies inside the model's 95 % HDI in "
+              f"{sum(judged)} of {len(judged)} rows: the HDI is the uncertainty given this one noisy realisation of "
+              "the runs.", "",
               f"- *reproduced*, Table 4: {METHOD['table4'].split('; HDI')[0]}.",
               f"- *reproduced*, Table 6: {METHOD['table6'].split('; HDI')[0]}.",
               f"- *model 95 % HDI*: {METHOD['table4'].split('HDI: ')[1]} (Table 4); "
