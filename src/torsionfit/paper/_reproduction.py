@@ -18,7 +18,7 @@ from ..report import fit_campaign
 from ._fault import worn_bench
 from ._grid import grid_axes, simulate_grid
 from ._polynomial import select_polynomial
-from ._posterior import kd_draws, run_component_draws, quasi_static_rate, secant_draws
+from ._posterior import kd_draws, quasi_static_rate, run_component_draws, secant_draws
 from ._published import CAMPAIGNS
 from ._settings import PaperSettings
 

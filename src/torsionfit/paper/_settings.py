@@ -4,8 +4,8 @@ decimated, one start) for tests and screening. Every number here is written to `
 with the results.
 
 Why Laplace by default: emcee on the bundled small campaign had not converged after 20 000 steps
-(26 min on the shared 2-core machine): the slowest parameter, the noise above the encoder floor
-of one loop (τ ≈ 815 steps), sits in a funnel — the synthetic angles are quantised truth, so the
+(20 min on the shared 2-core machine; R̂ max 1.03): the slowest parameter, the noise above the
+encoder floor of one loop (τ ≈ 815 steps), sits in a funnel — the synthetic angles are quantised truth, so the
 noise is at the floor and its scale is not identified. ``--sampler emcee`` runs it anyway and
 reports ``converged: false`` when it is not."""
 

@@ -18,7 +18,7 @@ ARCMIN_PER_DEG = 60.0
 def figure(ncols: int = 1, nrows: int = 1, width: float = 6.0, height: float = 4.4, **kw):
     """A figure with room for the footer label."""
     fig, axes = plt.subplots(nrows, ncols, figsize=(width * ncols, height * nrows), squeeze=False, **kw)
-    fig.subplots_adjust(bottom=0.16 if nrows == 1 else 0.1, top=0.82 if nrows == 1 else 0.9)
+    fig.subplots_adjust(bottom=0.18 if nrows == 1 else 0.1, top=0.82 if nrows == 1 else 0.9)
     return fig, axes
 
 
