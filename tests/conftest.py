@@ -9,6 +9,11 @@ import pytest
 # The CLI keeps JAX's compiled programs on disk (torsionfit/_cache.py); tests stay hermetic and
 # leave the user's cache alone. tests/test_cache.py exercises the cache in a temporary folder.
 os.environ["TORSIONFIT_CACHE_DIR"] = "off"
+# One XLA thread per test process: the suite runs two pytest-xdist workers on two cores, and
+# XLA's own intra-op threads on top of them oversubscribe the cores (test_diagnose.py alone on
+# an idle machine: 558 s of CPU, 6.3 min, with one thread; 656 s with XLA's default threads, in
+# a run that other jobs joined halfway). Must be set before JAX starts; a user's XLA_FLAGS win.
+os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
 
 #: the shared data folder next to the repository (real measured data, never copied in)
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
