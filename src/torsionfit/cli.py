@@ -39,6 +39,13 @@ def _cmd_metrics(args) -> int:
     return 0
 
 
+def _progress(command: str, quiet: bool = False):
+    """Progress callback: ``[command] text`` lines on stderr, or nothing when ``quiet``."""
+    if quiet:
+        return lambda text: None
+    return lambda text: print(f"[{command}] {text}", file=sys.stderr, flush=True)
+
+
 def _parse_effects(items) -> dict:
     """``--with NAME`` or ``--with NAME=VALUE`` (VALUE in TOML, as in a bench file's [effects])."""
     import tomllib
@@ -99,7 +106,7 @@ def _cmd_diagnose(args) -> int:
 
     campaign = decimate(load_campaign(args.campaign), args.decimate)
     options = DiagnoseOptions(initial_effects=_parse_effects(args.with_))
-    say = (lambda text: None) if args.quiet else (lambda text: print(f"[diagnose] {text}", file=sys.stderr, flush=True))
+    say = _progress("diagnose", quiet=args.quiet)
     result = diagnose(campaign, options, seed=args.seed, progress=say)
     doc = write_diagnosis(result, campaign, args.output)
     print(summary_text(doc))
@@ -118,7 +125,7 @@ def _cmd_accept(args) -> int:
                          progress=not args.no_progress, decimate=args.decimate)
     out = Path(args.output)
     if args.campaign.is_dir() and not (args.campaign / "campaign.toml").is_file():
-        say = lambda text: print(f"[accept] {text}", file=sys.stderr, flush=True)  # noqa: E731
+        say = _progress("accept")
         rows = accept_folder(args.campaign, spec, out, options, seed=args.seed, progress=say)
         paths = write_batch_table(rows, out)
         counts = {d: sum(r["decision"] == d for r in rows) for d in ("accept", "reject", "indeterminate", "error")}
@@ -148,7 +155,7 @@ def _cmd_batch(args) -> int:
         spec=spec, spec_digest=hashlib.sha256(args.spec.read_bytes()).hexdigest() if spec else None,
         posterior_units=posterior_sample(units, args.posterior_sample, args.seed),
         figures=args.figures, group_size=args.group_size, seed=args.seed)
-    say = lambda text: print(f"[batch] {text}", file=sys.stderr, flush=True)  # noqa: E731
+    say = _progress("batch")
     rows = run_batch(args.folder, args.output, options, scheduler=args.scheduler, force=args.force, progress=say)
     counts = {}
     for row in rows:
@@ -163,13 +170,52 @@ def _cmd_batch(args) -> int:
 def _cmd_paper(args) -> int:
     from .paper import paper_settings, run_paper
 
-    say = (lambda text: None) if args.quiet else (lambda text: print(f"[paper] {text}", file=sys.stderr, flush=True))
+    say = _progress("paper", quiet=args.quiet)
     command = " ".join(["torsionfit paper -o DIR"] + (["--quick"] if args.quick else []) + ([f"--seed {args.seed}"] if args.seed else [])
                        + ([f"--sampler {args.sampler}"] if args.sampler else []))
     doc = run_paper(args.output, paper_settings(args.quick, args.seed, args.sampler), args.data, say, command)
     print(f"max deviation from the published tables {100 * doc['max_relative_deviation']:.3f} %; "
           f"wrote {args.output / 'tables.json'}, {args.output / 'README.md'}, {len(doc['figures'])} figure files")
     return 0
+
+
+# Options several subcommands share; the defaults are the common name, default and help text,
+# the keyword arguments keep the few places where a subcommand says it differently.
+def _add_campaign(p) -> None:
+    p.add_argument("campaign", type=Path, help="campaign manifest (TOML)")
+
+
+def _add_output(p) -> None:
+    p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
+
+
+def _add_seed(p, help="random seed (default 0)") -> None:
+    p.add_argument("--seed", type=int, default=0, help=help)
+
+
+def _add_with(p, help="switch a model extension on by hand (repeatable), as for fit") -> None:
+    p.add_argument("--with", dest="with_", action="append", metavar="EFFECT[=VALUE]", help=help)
+
+
+def _add_sampler(p, default="emcee", choices=("emcee", "laplace"),
+                 help="emcee posterior (default) or the MAP's Laplace approximation (fast screening)") -> None:
+    p.add_argument("--sampler", choices=choices, default=default, help=help)
+
+
+def _add_max_steps(p, help="cap on emcee steps") -> None:
+    p.add_argument("--max-steps", type=int, default=20_000, help=help)
+
+
+def _add_decimate(p, help="fit block means of N consecutive samples") -> None:
+    p.add_argument("--decimate", type=int, default=1, metavar="N", help=help)
+
+
+def _add_no_progress(p) -> None:
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _add_quiet(p) -> None:
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -182,12 +228,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="write a campaign (manifest + CSVs) from a virtual bench file")
     p.add_argument("bench", type=Path, help="bench file (TOML)")
-    p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
+    _add_output(p)
     p.add_argument("--seed", type=int, default=None, help="random seed (default: the bench file's)")
     p.set_defaults(func=_cmd_simulate)
 
     p = sub.add_parser("metrics", help="catalog metrics from the data alone (no model fit)")
-    p.add_argument("campaign", type=Path, help="campaign manifest (TOML)")
+    _add_campaign(p)
     p.add_argument("--json", action="store_true", help="machine-readable JSON on stdout")
     p.add_argument("--lost-motion-pct", type=float, default=3.0, help="±x %% of rated torque for lost motion (default 3)")
     p.add_argument("--t1-Nm", type=float, default=None, help="catalog knee T1 (default 0.25·T_r)")
@@ -196,34 +242,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_metrics)
 
     p = sub.add_parser("fit", help="fit the model: stiffness with uncertainty, its three parts, fit.json")
-    p.add_argument("campaign", type=Path, help="campaign manifest (TOML)")
-    p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--with", dest="with_", action="append", metavar="EFFECT[=VALUE]",
-                   help="switch a model extension on by hand (repeatable), e.g. --with rate_dependence "
-                        "--with 'kinematic_error=[1, 2, 39]' --with 'speed_dependence={viscous = true, compliance_order = 2}'")
-    p.add_argument("--sampler", choices=("emcee", "laplace"), default="emcee",
-                   help="emcee posterior (default) or the MAP's Laplace approximation (fast screening)")
+    _add_campaign(p)
+    _add_output(p)
+    _add_seed(p)
+    _add_with(p, help="switch a model extension on by hand (repeatable), e.g. --with rate_dependence "
+                      "--with 'kinematic_error=[1, 2, 39]' --with 'speed_dependence={viscous = true, compliance_order = 2}'")
+    _add_sampler(p)
     p.add_argument("--walkers", type=int, default=None, help="emcee walkers (default max(32, 2·dim+2))")
-    p.add_argument("--max-steps", type=int, default=20_000, help="cap on emcee steps; reaching it gives converged: false")
+    _add_max_steps(p, help="cap on emcee steps; reaching it gives converged: false")
     p.add_argument("--ar1", choices=("auto", "on", "off"), default="auto", help="AR(1) residuals (auto: runs of ≥ 100 samples)")
     p.add_argument("--student-t", type=float, default=None, metavar="DOF", help="Student-t likelihood with DOF degrees of freedom")
     p.add_argument("--save-chain", action="store_true", help="keep the emcee chain in OUTPUT/chain.h5")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUTPUT/chain.h5")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--decimate", type=int, default=1, metavar="N",
-                   help="fit block means of N consecutive samples (dense benches; recorded in fit.json)")
+    _add_no_progress(p)
+    _add_decimate(p, help="fit block means of N consecutive samples (dense benches; recorded in fit.json)")
     p.set_defaults(func=_cmd_fit)
 
     p = sub.add_parser("diagnose", help="close the loop: find what the model misses, add it, report before/after")
-    p.add_argument("campaign", type=Path, help="campaign manifest (TOML)")
-    p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--with", dest="with_", action="append", metavar="EFFECT[=VALUE]",
-                   help="start from a model with this extension already on (repeatable)")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
-    p.add_argument("--decimate", type=int, default=1, metavar="N",
-                   help="diagnose block means of N consecutive samples (dense benches)")
+    _add_campaign(p)
+    _add_output(p)
+    _add_seed(p)
+    _add_with(p, help="start from a model with this extension already on (repeatable)")
+    _add_quiet(p)
+    _add_decimate(p, help="diagnose block means of N consecutive samples (dense benches)")
     p.set_defaults(func=_cmd_diagnose)
 
     p = sub.add_parser(
@@ -238,15 +279,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("campaign", type=Path,
                    help="campaign manifest (TOML) or a folder holding one; any other folder: every campaign.toml under it")
     p.add_argument("--spec", type=Path, required=True, help="spec file (TOML): p_accept and [[requirement]] tables")
-    p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--sampler", choices=("emcee", "laplace"), default="emcee",
-                   help="emcee posterior (default) or the MAP's Laplace approximation (fast screening)")
-    p.add_argument("--max-steps", type=int, default=20_000, help="cap on emcee steps; reaching it gives indeterminate")
-    p.add_argument("--with", dest="with_", action="append", metavar="EFFECT[=VALUE]",
-                   help="switch a model extension on by hand (repeatable), as for fit")
-    p.add_argument("--decimate", type=int, default=1, metavar="N", help="fit block means of N consecutive samples")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_output(p)
+    _add_seed(p)
+    _add_sampler(p)
+    _add_max_steps(p, help="cap on emcee steps; reaching it gives indeterminate")
+    _add_with(p)
+    _add_decimate(p)
+    _add_no_progress(p)
     p.set_defaults(func=_cmd_accept)
 
     p = sub.add_parser(
@@ -259,17 +298,16 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="exit codes: 2 if any unit is in error; with --spec else 4 if any is indeterminate, else 3 if\n"
                "any is rejected, else 0; without --spec else 4 if any posterior did not converge, else 0.")
     p.add_argument("folder", type=Path, help="folder: every campaign.toml in it or below is a unit")
-    p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
+    _add_output(p)
     p.add_argument("--spec", type=Path, default=None, help="spec file (TOML): decide every unit (as accept)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of every unit (default 0)")
-    p.add_argument("--sampler", choices=("laplace", "emcee"), default="laplace",
-                   help="every unit's posterior: the MAP's Laplace approximation (default) or emcee")
+    _add_seed(p, help="random seed of every unit (default 0)")
+    _add_sampler(p, default="laplace", choices=("laplace", "emcee"),
+                 help="every unit's posterior: the MAP's Laplace approximation (default) or emcee")
     p.add_argument("--posterior-sample", type=int, default=0, metavar="K",
                    help="K units, chosen by the seed, get the full emcee posterior (default 0)")
-    p.add_argument("--max-steps", type=int, default=20_000, help="cap on emcee steps")
-    p.add_argument("--with", dest="with_", action="append", metavar="EFFECT[=VALUE]",
-                   help="switch a model extension on by hand (repeatable), as for fit")
-    p.add_argument("--decimate", type=int, default=1, metavar="N", help="fit block means of N consecutive samples")
+    _add_max_steps(p)
+    _add_with(p)
+    _add_decimate(p)
     p.add_argument("--group-size", type=int, default=16, metavar="G", help="units of one shape fitted together, at most (default 16)")
     p.add_argument("--figures", action="store_true", help="also write each unit's figures")
     p.add_argument("--force", action="store_true", help="redo units already done")
@@ -278,13 +316,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_batch)
 
     p = sub.add_parser("paper", help="reproduce Cheng et al. 2023 on the bundled SYNTHETIC campaigns: figures, tables.json, comparison page")
-    p.add_argument("-o", "--output", type=Path, required=True, help="output folder")
+    _add_output(p)
     p.add_argument("--quick", action="store_true", help="quick settings: Laplace approximation, slowest loop only, decimated, small grid (tests)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--sampler", choices=("laplace", "emcee"), default=None,
-                   help="posterior of the fits: the MAP's Laplace approximation (default) or emcee (hours on 2 cores)")
+    _add_seed(p)
+    _add_sampler(p, default=None, choices=("laplace", "emcee"),
+                 help="posterior of the fits: the MAP's Laplace approximation (default) or emcee (hours on 2 cores)")
     p.add_argument("--data", type=Path, default=None, help="folder holding paper-small/ and paper-large/ (default: the checkout's data/)")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    _add_quiet(p)
     p.set_defaults(func=_cmd_paper)
     return parser
 
