@@ -84,20 +84,30 @@ def turning_points(y: np.ndarray, threshold: float) -> list[int]:
     return points
 
 
+def smooth_torque(tau: np.ndarray, width: int) -> tuple[np.ndarray, float]:
+    """Smoothed torque (running median of 5, then :func:`savgol` over ``width`` samples) and σ,
+    the noise left in it: the robust σ of the raw − smoothed residual times the filter's noise
+    gain."""
+    smooth = savgol(moving_median(tau, 5), width)
+    resid = tau - smooth
+    sigma = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
+    sigma *= float(np.sqrt(np.sum(savgol_weights(width) ** 2))) if width > 1 else 1.0
+    return smooth, sigma
+
+
+def split_monotone(smooth: np.ndarray, threshold: float) -> list[tuple[int, int, int]]:
+    """Monotone segments ``[(start, stop, direction), ...]`` of ``smooth`` between its
+    :func:`turning_points` (``stop`` inclusive, consecutive segments share their turning point,
+    direction ±1)."""
+    bounds = [0, *turning_points(smooth, threshold), smooth.size - 1]
+    return [(a, b, 1 if smooth[b] > smooth[a] else -1) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+
 def monotone_segments(torque_Nm, *, reversal_fraction: float = 0.10, noise_sigmas: float = 8.0):
     """Smoothed torque and its monotone segments ``[(start, stop, direction), ...]`` (``stop``
     inclusive, consecutive segments share their turning point). A turning point needs a
     retreat larger than ``max(reversal_fraction × range, noise_sigmas × σ)``."""
     tau = np.asarray(torque_Nm, float)
-    width = default_window(tau.size)
-    smooth = savgol(moving_median(tau, 5), width)
-    span = float(np.ptp(smooth))
-    resid = tau - smooth
-    sigma = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
-    sigma *= float(np.sqrt(np.sum(savgol_weights(width) ** 2))) if width > 1 else 1.0
-    threshold = max(reversal_fraction * span, noise_sigmas * sigma, 1e-300)
-    bounds = [0, *turning_points(smooth, threshold), tau.size - 1]
-    segments = [
-        (a, b, 1 if smooth[b] > smooth[a] else -1) for a, b in zip(bounds[:-1], bounds[1:]) if b > a
-    ]
-    return smooth, segments
+    smooth, sigma = smooth_torque(tau, default_window(tau.size))
+    threshold = max(reversal_fraction * float(np.ptp(smooth)), noise_sigmas * sigma, 1e-300)
+    return smooth, split_monotone(smooth, threshold)

@@ -24,10 +24,8 @@ from .._errors import InputError
 from ..io._campaign import HysteresisRun
 from .._segments import (
     default_window as _default_window,
-    moving_median as _moving_median,
-    savgol as _savgol,
-    savgol_weights as _savgol_weights,
-    turning_points as _turning_points,
+    smooth_torque as _smooth_torque,
+    split_monotone as _split_monotone,
 )
 from ..units import from_si
 
@@ -180,22 +178,13 @@ def loop_branches(
     width = _default_window(tau.size) if smooth_samples is None else int(smooth_samples)
     width = max(1, width | 1)  # odd
 
-    smooth = _savgol(_moving_median(tau, 5), width)
+    smooth, sigma_smooth = _smooth_torque(tau, width)
     lo_peak, hi_peak = float(smooth.min()), float(smooth.max())
     span = hi_peak - lo_peak
     if span <= 0:
         raise InputError(f"hysteresis run {run.name!r}: the torque never changes; expected a loop")
-    # Noise left after smoothing: robust σ of the raw residual times the filter's noise gain.
-    sigma_raw = 1.4826 * float(np.median(np.abs(tau - smooth - np.median(tau - smooth))))
-    gain = float(np.sqrt(np.sum(_savgol_weights(width) ** 2))) if width > 1 else 1.0
-    sigma_smooth = sigma_raw * gain
     threshold = max(reversal_fraction * span, _NOISE_SIGMAS * sigma_smooth)
-
-    bounds = [0, *_turning_points(smooth, threshold), tau.size - 1]
-    segments: list[tuple[int, int, int]] = []
-    for start, stop in zip(bounds[:-1], bounds[1:]):
-        if stop > start:
-            segments.append((start, stop, 1 if smooth[stop] > smooth[start] else -1))
+    segments = _split_monotone(smooth, threshold)
 
     reach = full_range_tolerance * span
     branch_ids = [
