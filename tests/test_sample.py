@@ -164,18 +164,18 @@ def test_interrupted_run_keeps_its_steps_and_resumes_exactly(tmp_path, monkeypat
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         run_sampler(problem, start, seed=7, max_steps=300, backend_path=tmp_path / "a.h5", **never)
-        real_call, calls = _emcee._LogProb.__call__, []
+        real_save, saves = _emcee.BufferedHDFBackend.save_step, []
 
-        def flaky(self, coords):
-            calls.append(1)
-            if len(calls) > 251:  # 1 (start) + 1 (emcee's first) + 2 per step: dies in step 125
+        def flaky(self, state, accepted):
+            saves.append(1)
+            if len(saves) == 125:  # dies in step 125, after the first block's 100 steps
                 raise KeyboardInterrupt
-            return real_call(self, coords)
+            return real_save(self, state, accepted)
 
-        monkeypatch.setattr(_emcee._LogProb, "__call__", flaky)
+        monkeypatch.setattr(_emcee.BufferedHDFBackend, "save_step", flaky)
         with pytest.raises(KeyboardInterrupt):
             run_sampler(problem, start, seed=7, max_steps=300, backend_path=tmp_path / "b.h5", **never)
-        monkeypatch.setattr(_emcee._LogProb, "__call__", real_call)
+        monkeypatch.setattr(_emcee.BufferedHDFBackend, "save_step", real_save)
         stored = emcee.backends.HDFBackend(str(tmp_path / "b.h5"), read_only=True).iteration
         assert stored == 124  # every completed step, including those of the unfinished block
         res = run_sampler(problem, start, seed=0, max_steps=300, backend_path=tmp_path / "b.h5",
@@ -422,3 +422,44 @@ def test_real_campaign_converges_near_the_map(small):
     tree = to_datatree(small.problem, res, small.runs)
     s = convergence_summary(tree)
     assert s["converged"] and s["rhat_max"] < 1.05 and s["ess_min"] > 400
+
+
+# --- the Laplace independence move -------------------------------------------------------------
+@pytest.mark.parametrize("shift, scale", [(0.0, 1.0), (1.0, 0.5), (-0.5, 2.5)])
+def test_laplace_move_alone_samples_the_target_even_from_a_wrong_approximation(shift, scale):
+    """The independence move is Metropolis–Hastings with the Hastings factor ln q(x) − ln q(x'):
+    its stationary law is the target whatever q is. A q shifted by 1 sd and 2× too narrow, or
+    2.5× too wide, still gives the target's mean and sd (a wrong factor would not)."""
+    from torsionfit.sample._laplace_move import LaplaceMove
+
+    problem, _, mean, cov = _toy()
+    sd = np.sqrt(np.diag(cov))
+    move = LaplaceMove(mean + shift * sd, scale**2 * cov)
+    walkers = 32
+    sampler = emcee.EnsembleSampler(walkers, 3, _LogProb(problem, batch=walkers // 2), vectorize=True,
+                                    moves=[(move, 1.0)])
+    rng = np.random.default_rng(0)
+    sampler.random_state = np.random.RandomState(0).get_state()
+    sampler.run_mcmc(mean + rng.standard_normal((walkers, 3)) * sd, 3000, progress=False)
+    draws = sampler.get_chain(discard=500, flat=True)
+    assert np.all(np.abs(draws.mean(0) - mean) < 0.15 * sd)
+    assert np.allclose(draws.std(0), sd, rtol=0.12)
+
+
+def test_laplace_move_rejects_a_covariance_of_the_wrong_shape():
+    from torsionfit.sample._laplace_move import LaplaceMove
+
+    with pytest.raises(ValueError, match="cov must be 3×3"):
+        LaplaceMove(np.zeros(3), np.eye(2))
+
+
+def test_sampler_matches_the_target_when_the_laplace_approximation_is_off():
+    """run_sampler's mixture, started from an approximation shifted by 1 sd and 3× too narrow."""
+    problem, start, mean, cov = _toy()
+    sd = np.sqrt(np.diag(cov))
+    wrong = SimpleNamespace(u=mean + sd, cov=cov / 9.0, names=start.names)
+    res = run_sampler(problem, wrong, seed=2, **FAST)
+    draws = res.flat()
+    assert res.converged
+    assert np.all(np.abs(draws.mean(0) - mean) < 0.25 * sd)
+    assert np.allclose(draws.std(0), sd, rtol=0.15)
