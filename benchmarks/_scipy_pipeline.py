@@ -26,8 +26,9 @@ variables variance; AR(1) noise), written without JAX:
   between, the same Laplace covariance. The Jacobian is by forward differences, all columns
   in one walker-vectorised model call (13 perturbed points cost about as much as 3 single
   evaluations).
-- **Posterior** (:func:`run_emcee`): emcee exactly as ``run_sampler`` calls it (DEMove 0.8 +
-  StretchMove 0.2, ``vectorize=True``, the same walker count, the same Laplace start and
+- **Posterior** (:func:`run_emcee`): emcee exactly as ``run_sampler`` calls it (its move
+  mixture — the Laplace independence move, DE and stretch, ``torsionfit.sample._emcee.moves``,
+  plain NumPy — ``vectorize=True``, the same walker count, the same Laplace start and
   random state, τ checked every 500 steps, the same stopping rule, burn-in and thinning —
   ``run_sampler``'s own helpers are reused), plus an optional wall-time budget.
 """
@@ -46,7 +47,7 @@ from torsionfit.fit._prior import build_priors
 from torsionfit.fit._problem import AR1_MIN_SAMPLES, NOISE_PRIOR_SD, RHO_PRIOR_SD, _hat_basis, _knot_indices
 from torsionfit.io import HysteresisRun
 from torsionfit.model import Parameter
-from torsionfit.sample._emcee import _burn_thin, _check, _regularised_cov, _tau, default_n_walkers
+from torsionfit.sample._emcee import _burn_thin, _check, _regularised_cov, _tau, default_n_walkers, moves
 
 #: the base model's non-linear parameters, in torsionfit's order, with their bijections
 PHYSICS = (
@@ -491,7 +492,7 @@ def run_emcee(problem: NumpyProblem, map_result: MapResult, *, seed: int, n_walk
     n_walkers = default_n_walkers(dim) if n_walkers is None else int(n_walkers)
     names = tuple(map_result.names)
     sampler = emcee.EnsembleSampler(n_walkers, dim, problem, vectorize=True,
-                                    moves=[(emcee.moves.DEMove(), 0.8), (emcee.moves.StretchMove(), 0.2)])
+                                    moves=moves(map_result.u, map_result.cov))
     rng = np.random.default_rng(seed)
     start = initial_walkers(problem, map_result.u, map_result.cov, n_walkers, rng)
     sampler.random_state = np.random.RandomState(seed).get_state()

@@ -8,7 +8,7 @@ five-step loop, 10 001 samples, 1″ AR(1) angle noise, 1″ encoder, 1.5 N·m t
 the default ``fit_campaign`` configuration: base model with a free initial friction state,
 latent torque knots, errors-in-variables variance, AR(1) noise, angle offset profiled —
 with the same algorithm (4-start Levenberg–Marquardt MAP with noise re-estimation, Laplace
-start, emcee DE 0.8 + Stretch 0.2 with the same walkers, seed and stopping rule):
+start, emcee with run_sampler's moves, walkers, seed and stopping rule):
 
 - **torsionfit**: ``build_problem`` → ``fit_map`` → ``run_sampler``, as ``fit_campaign``
   calls them; JAX compilation included, and measured separately (``jax.monitoring``
@@ -68,6 +68,7 @@ import jax.numpy as jnp  # noqa: E402
 import _scipy_pipeline as sp  # noqa: E402
 from _machine import machine  # noqa: E402
 import torsionfit.sample._emcee as tf_emcee  # noqa: E402
+from torsionfit.sample._emcee import MOVES_DESCRIPTION  # noqa: E402
 from torsionfit.bench import load_bench, simulate  # noqa: E402
 from torsionfit.fit import NoiseOptions, build_problem, fit_map  # noqa: E402
 from torsionfit.model import model_with_effects  # noqa: E402
@@ -436,8 +437,9 @@ def build_report(args, info, bench_path, n_samples, tf, warm, npy, costs, loads,
         "log-density equals torsionfit's (tests/test_scipy_pipeline_reference.py)",
         "- speed-up column: NumPy/SciPy time ÷ torsionfit time (or torsionfit rate ÷ NumPy/SciPy rate); "
         "below 1× torsionfit is slower",
-        "- emcee: DEMove 0.8 + StretchMove 0.2, `vectorize=True`, τ checked every 500 steps, stop when the "
-        "chain is > 50 τ_max and τ_max moved < 1 %; burn-in 2 τ_max, thin τ_min/2 (run_sampler's rule, both sides)",
+        f"- emcee: {MOVES_DESCRIPTION}, `vectorize=True`, τ checked every 500 steps, stop when the "
+        "chain is > 50 τ_max and τ_max moved < 1 % (or the chain is > 100 τ_max), at least 1000 steps; "
+        "burn-in 2 τ_max, thin τ_min/2 (run_sampler's rule, both sides)",
         f"- benchmark wall time: {wall:.0f} s; 1-min load average {loads[0]:.2f} at start, {loads[1]:.2f} at end "
         "(above ~1 means other processes shared the cores: all times are then inflated, not necessarily alike)",
         "",

@@ -8,8 +8,8 @@ Metropolis–Hastings kernel for any fixed q (the proposal never adapts to the c
 posterior is left invariant whatever the quality of the Laplace approximation; the quality
 only sets the efficiency. Where the Laplace approximation is good — the usual case for a loop of
 thousands of samples — a walker jumps across the whole posterior in one accepted step, and the
-integrated autocorrelation time falls from ~45 steps (DE + stretch) to ~4–6 (measured on
-``benchmarks/benches/full_fit_2k.toml``). The t tails (heavier than the Gaussian) and the scale
+integrated autocorrelation time falls from ~44 steps (DE + stretch) to ~4–6 (``benchmarks/bench_moves.py``
+on ``benchmarks/benches/full_fit_2k.toml``). The t tails (heavier than the Gaussian) and the scale
 > 1 keep the importance ratio bounded where the posterior is wider than the approximation;
 where it is far off, acceptance falls and the ensemble moves of the mixture do the work.
 """
