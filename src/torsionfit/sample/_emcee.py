@@ -133,11 +133,14 @@ class _LogProb:
 
     Every call is evaluated in chunks of ``batch`` rows (the last one padded), so the JAX
     function compiles for one batch shape only: emcee asks for the whole ensemble once and
-    for half of it at every step."""
+    for half of it at every step. ``evaluate`` (chunk → log-densities) replaces the default
+    ``batch_log_density(problem, chunk)``: ``torsionfit.batch`` evaluates the chunks of many
+    units' samplers in one call."""
 
-    def __init__(self, problem, batch: int | None = None):
+    def __init__(self, problem, batch: int | None = None, evaluate=None):
         self.problem = problem
         self.batch = batch
+        self.evaluate = evaluate or (lambda chunk: batch_log_density(self.problem, jnp.asarray(chunk)))
 
     def __call__(self, coords) -> np.ndarray:
         coords = np.atleast_2d(np.asarray(coords, dtype=float))
