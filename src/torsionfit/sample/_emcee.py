@@ -17,8 +17,8 @@ Choices, and why:
   where the Laplace approximation is poor. Measured τ_max: on the 14-parameter test campaign
   (32 walkers, 8000 steps, two seeds) ≈ 195 steps with the stretch move alone, ≈ 70 with
   DE 0.8 + stretch 0.2, ≈ 63 with DE alone; on ``benchmarks/benches/full_fit_2k.toml``
-  (3000 steps) 45 with DE 0.8 + stretch 0.2, 6.4 with this mixture, 3.9 with Laplace 0.8 +
-  DE 0.2 — the ensemble moves keep half the weight as insurance for posteriors far from
+  (3000 steps, ``benchmarks/bench_moves.py``) 43.7 with DE 0.8 + stretch 0.2, 6.2 with this
+  mixture, 3.9 with Laplace 0.8 + DE 0.2 — the ensemble moves keep half the weight as insurance for posteriors far from
   Gaussian.
 - **Walkers**: ``max(32, 2·dim + 2)`` rounded up to even (emcee needs an even ensemble for
   the red–blue split and at least 2·dim walkers). Started from the Laplace approximation
