@@ -54,19 +54,24 @@ def _noise_update(problem: FitProblem, u):
 
 
 @eqx.filter_jit
-def _full_values(problem: FitProblem, u):
-    return problem.full_values(u)
+def _solve_pass(problem: FitProblem, u_phys, u_noise, solver, max_steps: int):
+    """One noise pass of ``fit_map``: LM on the physics, then the closed-form noise update, and
+    the log density there — one compiled program (compilation dominates a cold fit)."""
+    u_phys, result, _ = _solve(problem, u_phys, u_noise, solver, max_steps)
+    u_noise = _noise_update(problem, jnp.concatenate([u_phys, u_noise]))
+    return u_phys, u_noise, result, problem.log_density(jnp.concatenate([u_phys, u_noise]))
 
 
-@eqx.filter_jit
-def _noise_values(problem: FitProblem, u):
-    return problem.noise_values(u)
-
-
-@eqx.filter_jit
 def _physics_jacobian(problem: FitProblem, u):
     n = problem.n_nonlinear
     return jax.jacfwd(lambda a: _lm_residuals(a, (problem, u[n:])))(u[:n])
+
+
+@eqx.filter_jit
+def _laplace_parts(problem: FitProblem, u):
+    """At u: the physics Jacobian, (σ_r, ρ_r) and every parameter value, compiled together."""
+    sigma, rho = problem.noise_values(u)
+    return _physics_jacobian(problem, u), sigma, rho, problem.full_values(u)
 
 
 def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
@@ -74,9 +79,8 @@ def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
     whitened residuals and prior pseudo-residuals), the asymptotic variances for the noise
     parameters (var log σ ≈ 1/2N, var ρ ≈ (1 − ρ²)/N, mapped to s and logit ρ and capped by
     their priors). The two blocks are taken as uncorrelated, as they are asymptotically."""
-    u = jnp.asarray(u)
-    sigma, rho = _noise_values(problem, u)
-    return laplace_from_parts(problem, u, _physics_jacobian(problem, u), sigma, rho)
+    jac, sigma, rho, _ = _laplace_parts(problem, jnp.asarray(u))
+    return laplace_from_parts(problem, u, jac, sigma, rho)
 
 
 def laplace_from_parts(problem: FitProblem, u, jac, sigma, rho) -> np.ndarray:
@@ -180,19 +184,15 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     us, lds, oks, messages = [], [], [], []
     for start in map_starts(problem, n_starts, seed):
         u_phys, u_noise = jnp.asarray(start), iid
-        ok, message = True, ""
         for _ in range(noise_passes):
-            u_phys, result, _ = _solve(problem, u_phys, u_noise, solver, max_steps)
-            ok = bool(result == optx.RESULTS.successful)
-            message = _message(result)
-            u_noise = _noise_update(problem, jnp.concatenate([u_phys, u_noise]))
-        u = jnp.concatenate([u_phys, u_noise])
-        us.append(u)
-        lds.append(float(log_density(problem, u)))
-        oks.append(ok)
-        messages.append(message)
+            u_phys, u_noise, result, ld = _solve_pass(problem, u_phys, u_noise, solver, max_steps)
+        us.append(np.concatenate([np.asarray(u_phys), np.asarray(u_noise)]))
+        lds.append(float(ld))
+        oks.append(bool(result == optx.RESULTS.successful))
+        messages.append(_message(result))
     u, ld, ok, message = best_start(us, lds, oks, messages)
-    cov = laplace_covariance(problem, u)
-    values = {k: np.asarray(v) for k, v in _full_values(problem, jnp.asarray(u)).items()}
+    jac, sigma, rho, values = _laplace_parts(problem, jnp.asarray(u))
+    cov = laplace_from_parts(problem, u, jac, sigma, rho)
+    values = {k: np.asarray(v) for k, v in values.items()}
     return MapResult(problem=problem, run_names=run_names, u=u, cov=cov, values=values,
                      log_density=ld, converged=ok, message=message, starts=list(zip(lds, messages)))
