@@ -46,6 +46,32 @@ def test_derived_metrics_of_the_truth_match_the_data_only_metrics(noisy_bench):
     assert truth["kd_mean[te-5rpm-fw]"] == pytest.approx(data["transmission_error"]["kd"]["value"], rel=0.01)
 
 
+
+def test_derived_metrics_compile_once_for_any_loading_rate_and_draw_count(noisy_bench):
+    """The loading rate and the rated torque are data, not compile keys; the draws are
+    evaluated in fixed chunks (the last padded), each draw as one evaluate() gives it."""
+    import dataclasses
+
+    import jax
+
+    from torsionfit.report._derived import _metrics_over_draws
+
+    sim = simulate(load_bench(noisy_bench), seed=4)
+    draws = {k: np.stack([np.asarray(v) * f for f in (1.0, 1.01, 0.99)]) for k, v in sim.truth.items()}
+    first = derived_metrics_for(sim.campaign, sim.model).over_draws(draws)
+    size = _metrics_over_draws._cached._cache_size()
+    for rate, rated in ((0.5, 380.0), (40.0, 500.0)):
+        runs = tuple(dataclasses.replace(r, loading_rate_Nm_per_s=rate) if r.kind == "hysteresis" else r
+                     for r in sim.campaign.runs)
+        reducer = dataclasses.replace(sim.campaign.reducer, rated_torque_Nm=rated)
+        derived = derived_metrics_for(dataclasses.replace(sim.campaign, runs=runs, reducer=reducer), sim.model)
+        assert any(f"{rate:g} N·m/s" in s.description for s in derived.specs)
+        derived.over_draws(jax.tree.map(lambda x: x[:2], draws))
+    assert _metrics_over_draws._cached._cache_size() == size  # no new compilation
+    one = [np.asarray(derived_metrics_for(sim.campaign, sim.model).evaluate(jax.tree.map(lambda x, i=i: x[i], draws)))
+           for i in range(3)]
+    np.testing.assert_allclose(first, np.stack(one), rtol=1e-12)
+
 def test_fit_json_has_the_contract(laplace_fit):
     sim, fit = laplace_fit
     doc = json.loads(json.dumps(fit_json(fit)))  # JSON-serialisable

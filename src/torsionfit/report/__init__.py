@@ -9,6 +9,7 @@ from ._pipeline import (
     fit_campaign as fit_campaign,
     fit_json as fit_json,
     prepare_fit as prepare_fit,
+    sampler_kwargs as sampler_kwargs,
     summarise as summarise,
     summary_table as summary_table,
     write_fit as write_fit,

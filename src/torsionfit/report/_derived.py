@@ -15,6 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import model as m
+from .._chunks import map_chunks
 from ..bench import five_step_protocol
 from ..io import Campaign
 from ..units import ANGLE_UNITS, SPEED_UNITS, STIFFNESS_UNITS
@@ -80,8 +81,10 @@ class DerivedMetrics(eqx.Module):
     protocol: _Protocol
     te_inputs: list
     specs: tuple = eqx.field(static=True)
-    rated: float = eqx.field(static=True)
-    lost_motion_fraction: float = eqx.field(static=True)
+    # arrays, not static fields: a static value is part of the compile key, and a batch of units
+    # with other rated torques would compile the metrics anew for each
+    rated: jnp.ndarray  # T_r, N·m
+    lost_motion_fraction: jnp.ndarray  # x of the lost motion at ±x·T_r
 
     def evaluate(self, values: dict) -> jnp.ndarray:
         """All metrics (in ``specs`` order, their units) for one parameter set (SI)."""
@@ -132,29 +135,44 @@ class DerivedMetrics(eqx.Module):
         tc = self.te_model.components(_single_run_params(values, "transmission_error"), [inp])[0]
         return tc["total"] - tc["offset"]
 
-    @eqx.filter_jit
-    def over_draws(self, values_batch: dict) -> jnp.ndarray:
-        """(draws, metrics) for a dict of stacked parameter draws."""
-        return jax.vmap(self.evaluate)(values_batch)
+    def _kernel(self) -> "DerivedMetrics":
+        """This without its texts: what the compiled programs see. The texts name the loading
+        rate; as part of the compile key they would compile the metrics anew per rate."""
+        return dataclasses.replace(self, specs=())
 
-    @eqx.filter_jit
-    def kd_over_draws(self, values_batch: dict, torque_Nm, speed_rpm, direction) -> jnp.ndarray:
+    def over_draws(self, values_batch: dict) -> np.ndarray:
+        """(draws, metrics) for a dict of stacked parameter draws."""
+        kernel = self._kernel()
+        return map_chunks(lambda v: _metrics_over_draws(kernel, v), values_batch)
+
+    def kd_over_draws(self, values_batch: dict, torque_Nm, speed_rpm, direction) -> np.ndarray:
         """K_d = τ / TE(180°) (N·m/arcmin) of the model at any TE conditions, as ``kd_mean``:
         (draws, conditions) for stacked parameter draws and 1-D arrays of load torque (N·m),
         output speed (rpm) and direction (+1 forward, −1 backward). Needs TE runs in the
         campaign (``te_model``), since only they carry TE-only physics such as speed terms."""
         if self.te_model is None:
             raise ValueError("K_d needs a campaign with TE runs")
-        phi, t0 = jnp.asarray([jnp.pi]), jnp.zeros(1)
         speed_rad_s = jnp.asarray(speed_rpm, float) * SPEED_UNITS["rpm"]
         conditions = (jnp.asarray(torque_Nm, float), speed_rad_s, jnp.asarray(direction, float))
+        kernel = self._kernel()
+        return map_chunks(lambda v: _kd_over_draws(kernel, v, *conditions), values_batch)
 
-        def one(values, tau, v, d):
-            te = self._te_twist(values, m.TEInput(phi, t0, tau, v, d))
-            return jnp.abs(tau) / jnp.abs(te[0]) / NM_PER_ARCMIN
 
-        per_draw = jax.vmap(one, in_axes=(None, 0, 0, 0))
-        return jax.vmap(lambda values: per_draw(values, *conditions))(values_batch)
+@eqx.filter_jit
+def _metrics_over_draws(derived: DerivedMetrics, values_batch: dict):
+    return jax.vmap(derived.evaluate)(values_batch)
+
+
+@eqx.filter_jit
+def _kd_over_draws(derived: DerivedMetrics, values_batch: dict, torque_Nm, speed_rad_s, direction):
+    phi, t0 = jnp.asarray([jnp.pi]), jnp.zeros(1)
+
+    def one(values, tau, v, d):
+        te = derived._te_twist(values, m.TEInput(phi, t0, tau, v, d))
+        return jnp.abs(tau) / jnp.abs(te[0]) / NM_PER_ARCMIN
+
+    per_draw = jax.vmap(one, in_axes=(None, 0, 0, 0))
+    return jax.vmap(lambda values: per_draw(values, torque_Nm, speed_rad_s, direction))(values_batch)
 
 
 def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_pct: float = 3.0) -> DerivedMetrics:
@@ -188,5 +206,5 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
             te_inputs.append(m.te_input(phi, run.torque_Nm, run.speed_rpm, run.direction))
             specs.append(MetricSpec(f"kd_mean[{run.name}]", "Nm/arcmin", "K_d = T / TE(180°), model TE against its unloaded zero", cond))
             specs.append(MetricSpec(f"kt[{run.name}]", "Nm/arcmin", "K_t = T / revolution-mean TE, model", cond))
-    return DerivedMetrics(hyst_model, te_model, _protocol(rated, rate), te_inputs, tuple(specs), float(rated),
-                          lost_motion_pct / 100.0)
+    return DerivedMetrics(hyst_model, te_model, _protocol(rated, rate), te_inputs, tuple(specs), jnp.asarray(float(rated)),
+                          jnp.asarray(lost_motion_pct / 100.0))

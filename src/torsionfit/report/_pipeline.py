@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._chunks import map_chunks
 from .._errors import InputError
 from ..fit import NoiseOptions, build_problem, fit_map
 from ..io import Campaign, decimate
@@ -115,19 +116,27 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
     return finish_fit(campaign, options, model, problem, map_result, seed)
 
 
-def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_result, seed: int) -> CampaignFit:
+def sampler_kwargs(options: FitOptions, seed: int) -> dict:
+    """The keyword arguments of ``run_sampler`` for a fit with ``options`` and ``seed``."""
+    return {"seed": seed, "n_walkers": options.n_walkers, "max_steps": options.max_steps, "progress": options.progress,
+            "backend_path": options.backend_path, "resume": options.resume}
+
+
+def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_result, seed: int,
+               sample_result=None) -> CampaignFit:
     """Everything after the MAP: posterior (emcee or Laplace draws), derived metrics, RMSE —
     for a ``map_result`` of ``problem`` (``prepare_fit``) found one unit at a time or many at
-    once (``torsionfit.batch``)."""
+    once (``torsionfit.batch``). ``sample_result``: the emcee run of ``run_sampler`` with
+    ``sampler_kwargs(options, seed)``, when it was made already (the batch samples many units
+    together); else it is made here."""
     names = [r.name for r in campaign.runs]
     rng = np.random.default_rng(seed)
-    tree = sample_result = None
+    tree = None
     if options.sampler == "emcee":
         from ..sample import convergence_summary, run_sampler, to_datatree
 
-        sample_result = run_sampler(problem, map_result, seed=seed, n_walkers=options.n_walkers,
-                                    max_steps=options.max_steps, progress=options.progress,
-                                    backend_path=options.backend_path, resume=options.resume)
+        if sample_result is None:
+            sample_result = run_sampler(problem, map_result, **sampler_kwargs(options, seed))
         chain = np.asarray(sample_result.chain)
         draws_u = chain.reshape(-1, chain.shape[-1])
         tree = to_datatree(problem, sample_result, names, seed=seed)
@@ -158,7 +167,7 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     diagnostics["map_message"] = map_result.message
 
     pick = rng.choice(len(draws_u), size=min(options.metric_draws, len(draws_u)), replace=False)
-    values = _values_over_draws(problem, jnp.asarray(draws_u[pick]))
+    values = map_chunks(lambda u: _values_over_draws(problem, u), draws_u[pick])
     derived = derived_metrics_for(campaign, model, options.lost_motion_pct)
     metric_draws = np.asarray(derived.over_draws(values))
     bad = ~np.all(np.isfinite(metric_draws), axis=1)
