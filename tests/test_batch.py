@@ -180,14 +180,43 @@ def test_group_by_shape_and_posterior_sample():
     assert options.settings_of("u0") != replace(options, seed=5).settings_of("u0")
 
 
-@pytest.mark.slow
-def test_posterior_sample_gets_emcee_and_non_convergence_is_in_its_row(line, tmp_path):
-    good = tmp_path / "good"
+@pytest.fixture(scope="module")
+def good(line, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("good")
     for name in GOOD:
-        shutil.copytree(line / name, good / name)
-    code = main(_argv(good, tmp_path / "out", "--posterior-sample", "1", "--max-steps", "300"))
-    rows = json.loads((tmp_path / "out" / "batch.json").read_text())["units"]
+        shutil.copytree(line / name, folder / name)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def posterior_sample_run(good, tmp_path_factory):
+    out = tmp_path_factory.mktemp("sample1")
+    code = main(_argv(good, out, "--posterior-sample", "1", "--max-steps", "300"))
+    return out, code, json.loads((out / "batch.json").read_text())["units"]
+
+
+@pytest.mark.slow
+def test_posterior_sample_gets_emcee_and_non_convergence_is_in_its_row(posterior_sample_run):
+    out, code, rows = posterior_sample_run
     emcee = [r for r in rows if r["sampler"] == "emcee"]
     assert len(emcee) == 1 and code == 4
     assert emcee[0]["converged"] is False and "not converged" in emcee[0]["reason"]
-    assert (tmp_path / "out" / emcee[0]["unit"] / "posterior.nc").is_file()
+    assert (out / emcee[0]["unit"] / "posterior.nc").is_file()
+
+
+@pytest.mark.slow
+def test_emcee_units_sampled_together_equal_a_unit_sampled_alone(posterior_sample_run, good, tmp_path):
+    """--sampler emcee: both units' ensembles advance together (one log-density call for
+    both); the unit of the posterior sample, sampled there alone, has the same fit.json."""
+    out, _, rows = posterior_sample_run
+    alone = next(r["unit"] for r in rows if r["sampler"] == "emcee")
+    assert main(_argv(good, tmp_path / "all", "--sampler", "emcee", "--max-steps", "300")) == 4
+    both = json.loads((tmp_path / "all" / "batch.json").read_text())["units"]
+    assert all(r["sampler"] == "emcee" and r["converged"] is False and "not converged" in r["reason"] for r in both)
+    a = json.loads((out / alone / "fit.json").read_text())
+    b = json.loads((tmp_path / "all" / alone / "fit.json").read_text())
+    for key, value in a["diagnostics"].items():
+        assert b["diagnostics"][key] == (pytest.approx(value, rel=1e-9) if isinstance(value, float) else value), key
+    for name, m in a["metrics"].items():
+        for key in ("mean", "sd"):
+            assert b["metrics"][name][key] == pytest.approx(m[key], rel=1e-9), (name, key)

@@ -6,6 +6,7 @@ from ._batch import COLUMNS as COLUMNS, exit_code as exit_code, run_batch as run
 from ._executor import executor as executor, local_map as local_map
 from ._group import fit_group as fit_group
 from ._map_batch import fit_map_batch as fit_map_batch
+from ._sampler import UnitBatcher as UnitBatcher, run_samplers as run_samplers
 from ._options import BatchOptions as BatchOptions, posterior_sample as posterior_sample
 from ._shape import group_by_shape as group_by_shape, shape_key as shape_key, stack_problems as stack_problems
 from ._unit import (

@@ -53,7 +53,9 @@ def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler
             if err_row is not None:  # a unit in error is told in its folder too
                 rows[task.unit] = err_row
                 write_row(task, err_row, options)
-        groups = [[todo[i] for i in g] for g in group_by_shape([k for k, _ in shapes], options.group_size)]
+        # emcee units apart from the others: a group's emcee units are sampled together
+        keys = [k and f"{k}:{options.sampler_of(t.unit)}" for t, (k, _) in zip(todo, shapes)]
+        groups = [[todo[i] for i in g] for g in group_by_shape(keys, options.group_size)]
         say(f"{len(groups)} groups of up to {options.group_size} units of one shape")
         results = run_map(partial(fit_group, options=options), groups)
         for n, (group, group_rows) in enumerate(zip(groups, results), start=1):

@@ -1,10 +1,13 @@
 """The work of one shape group, wherever it runs (this process or a Dask worker): set up every
-unit's problem, MAP + Laplace for all of them together, then each unit's posterior, metrics,
-decision and files. A unit that fails gets an error row; the others go on."""
+unit's problem, MAP + Laplace for all of them together, the emcee units' posteriors together,
+then each unit's metrics, decision and files. A unit that fails gets an error row; the others
+go on."""
 
 from ..fit import fit_map
+from ..report import sampler_kwargs
 from ._map_batch import fit_map_batch
-from ._options import BatchOptions
+from ._options import EMCEE, BatchOptions
+from ._sampler import run_samplers
 from ._shape import shape_key
 from ._unit import UnitTask, error_row, finish_unit, prepare_unit, write_row
 
@@ -25,6 +28,18 @@ def _map_each(problems, names, options: BatchOptions) -> list:
         return out
 
 
+def _sample_each(tasks, prepared: dict, idx: list[int], maps: list, options: BatchOptions) -> dict:
+    """{unit index: SampleResult or the exception} of the emcee units among ``idx`` whose MAP
+    succeeded, sampled together (``run_samplers``)."""
+    todo = [(i, m) for i, m in zip(idx, maps)
+            if not isinstance(m, Exception) and options.sampler_of(tasks[i].unit) == EMCEE]
+    if not todo:
+        return {}
+    kwargs = [sampler_kwargs(options.fit_options_of(tasks[i].unit), options.seed) for i, _ in todo]
+    results = run_samplers([prepared[i][3] for i, _ in todo], [m for _, m in todo], kwargs)
+    return {i: r for (i, _), r in zip(todo, results)}
+
+
 def fit_group(tasks: list[UnitTask], options: BatchOptions) -> list[dict]:
     """Rows of ``tasks`` (units of one shape), in order; each unit's files and row file written."""
     rows: list[dict | None] = [None] * len(tasks)
@@ -38,11 +53,13 @@ def fit_group(tasks: list[UnitTask], options: BatchOptions) -> list[dict]:
     for key in dict.fromkeys(keys.values()):  # normally one shape; more if a file changed meanwhile
         idx = [i for i in prepared if keys[i] == key]
         maps = _map_each([prepared[i][3] for i in idx], [[r.name for r in prepared[i][1].runs] for i in idx], options)
+        samples = _sample_each(tasks, prepared, idx, maps, options)
         for i, map_result in zip(idx, maps):
             try:
-                if isinstance(map_result, Exception):
-                    raise map_result
-                rows[i] = finish_unit(tasks[i], prepared[i], map_result, options, key)
+                for result in (map_result, samples.get(i)):
+                    if isinstance(result, Exception):
+                        raise result
+                rows[i] = finish_unit(tasks[i], prepared[i], map_result, options, key, samples.get(i))
             except Exception as err:  # noqa: BLE001
                 rows[i] = error_row(tasks[i], err, options)
     for task, row in zip(tasks, rows):

@@ -58,12 +58,12 @@ def _metric_columns(doc: dict) -> dict:
     return out
 
 
-def finish_unit(task: UnitTask, prepared, map_result, options: BatchOptions, shape: str) -> dict:
-    """Posterior, metrics and (with a spec) the decision of one unit from its MAP; writes its
-    outputs and returns its row."""
+def finish_unit(task: UnitTask, prepared, map_result, options: BatchOptions, shape: str, sample_result=None) -> dict:
+    """Posterior, metrics and (with a spec) the decision of one unit from its MAP (and its emcee
+    run, when made already); writes its outputs and returns its row."""
     campaign, fitted, model, problem = prepared
     fit_options = options.fit_options_of(task.unit)
-    fit = finish_fit(fitted, fit_options, model, problem, map_result, options.seed)
+    fit = finish_fit(fitted, fit_options, model, problem, map_result, options.seed, sample_result)
     out = Path(task.out_dir)
     doc = write_fit(fit, out)
     d = doc["diagnostics"]

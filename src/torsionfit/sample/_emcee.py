@@ -151,7 +151,7 @@ class _LogProb:
         n = len(safe)
         batch = self.batch or n
         padded = np.concatenate([safe, np.repeat(safe[:1], -n % batch, axis=0)])
-        lp = np.concatenate([np.asarray(batch_log_density(self.problem, jnp.asarray(chunk)), dtype=float)
+        lp = np.concatenate([np.asarray(self.evaluate(chunk), dtype=float)
                              for chunk in np.split(padded, len(padded) // batch)])[:n]
         lp[~ok | ~np.isfinite(lp)] = -np.inf
         return lp
@@ -271,12 +271,13 @@ def _regularised_cov(cov: np.ndarray, fallback_sd: float = 1e-3, min_eig: float 
 
 
 def initial_walkers(problem, u_map, cov, n_walkers: int, rng: np.random.Generator,
-                    max_rounds: int = 100) -> np.ndarray:
+                    max_rounds: int = 100, evaluate=None) -> np.ndarray:
     """(n_walkers, dim) draws from N(u_map, cov) (cov regularised), each re-drawn until its
-    log-density is finite. RuntimeError when some walker never gets a finite value."""
+    log-density is finite. RuntimeError when some walker never gets a finite value.
+    ``evaluate``: as for :class:`_LogProb`."""
     u_map = np.asarray(u_map, dtype=float)
     chol = np.linalg.cholesky(_regularised_cov(cov))
-    logp = _LogProb(problem, batch=max(n_walkers // 2, 1))  # the sampler's batch shape
+    logp = _LogProb(problem, batch=max(n_walkers // 2, 1), evaluate=evaluate)  # the sampler's batch shape
     walkers = np.empty((n_walkers, u_map.size))
     todo = np.ones(n_walkers, dtype=bool)
     for _ in range(max_rounds):
@@ -355,7 +356,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
                 max_steps: int = 20_000, check_every: int = 500, tau_factor: float = 50.0,
                 min_steps: int = 1000, tau_rtol: float = 0.01,
                 backend_path: str | os.PathLike | None = None, resume: bool = False,
-                progress: bool = True) -> SampleResult:
+                progress: bool = True, evaluate=None) -> SampleResult:
     """Sample the posterior of ``problem`` with emcee, started from ``map_result``'s Laplace
     approximation (``.u``, ``.cov``; ``.names`` used for messages and the result).
 
@@ -365,7 +366,9 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
     chain stored there (its walker count is used; ``max_steps`` counts the stored steps too),
     and starts afresh when the file holds no chain. Without ``resume`` an existing chain in
     the file is overwritten. A chain that reaches ``max_steps`` unconverged is returned with
-    ``converged=False`` and a :class:`ConvergenceWarning`.
+    ``converged=False`` and a :class:`ConvergenceWarning`. ``evaluate`` maps a
+    (n_walkers/2, dim) chunk of u to its log-densities (default: ``batch_log_density`` of
+    ``problem``; ``torsionfit.batch`` passes one shared by many units' samplers).
     """
     dim = int(problem.dim)
     if check_every < 1 or max_steps < 1:
@@ -393,7 +396,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
     resumed = backend is not None and backend.iteration > 0
 
     sampler = emcee.EnsembleSampler(
-        n_walkers, dim, _LogProb(problem, batch=n_walkers // 2), vectorize=True, backend=backend,
+        n_walkers, dim, _LogProb(problem, batch=n_walkers // 2, evaluate=evaluate), vectorize=True, backend=backend,
         moves=moves(map_result.u, map_result.cov),
     )
     tau_prev = None
@@ -402,7 +405,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
         tau_prev = _tau(sampler) if sampler.iteration > 1 else None
     else:
         rng = np.random.default_rng(seed)
-        start = initial_walkers(problem, map_result.u, map_result.cov, n_walkers, rng)
+        start = initial_walkers(problem, map_result.u, map_result.cov, n_walkers, rng, evaluate=evaluate)
         sampler.random_state = np.random.RandomState(seed).get_state()
 
     converged, reason, history = False, "", []

@@ -1,0 +1,108 @@
+"""emcee for many units of one shape at once: every unit's ``run_sampler`` (its moves, seed and
+stopping rule unchanged) runs in its own thread, and the half-ensembles they ask to evaluate
+are gathered into one call of a jitted vmap(units)∘vmap(walkers) log-density.
+
+Each sampler hands its (walkers/2, dim) chunk to a shared :class:`UnitBatcher` and waits; when
+every still-running unit has handed one in, the last one to arrive makes the call for all and
+each gets its slice. A unit that has stopped (converged, at ``max_steps`` or failed) leaves the
+batcher; its lane is filled with its last chunk, so the compiled shape stays fixed. Every unit
+follows exactly the chain it would alone: the same proposals from its own random state, the
+same log-density values (to rounding), the same stopping rule.
+"""
+
+import threading
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from ..sample import run_sampler
+from ..sample._emcee import _log_density_one
+from ._shape import stack_problems
+
+#: log-density of (units, n, dim) → (units, n) for a stacked problem; compiled once per shape,
+#: unit count and chunk size
+units_log_density = eqx.filter_jit(eqx.filter_vmap(eqx.filter_vmap(_log_density_one, in_axes=(None, 0))))
+
+
+class UnitBatcher:
+    """Gathers one chunk per running unit, evaluates them in one call, hands back the slices.
+    ``evaluator(i)`` is unit i's ``evaluate`` for ``run_sampler``; ``leave(i)`` when it stops."""
+
+    def __init__(self, problems: list):
+        self.stacked = stack_problems(problems)
+        self.running = set(range(len(problems)))
+        self.waiting: dict[int, np.ndarray] = {}
+        self.done: dict[int, object] = {}  # unit → its log-densities, or the call's exception
+        self.last: list = [None] * len(problems)  # each unit's last chunk: the filler of its lane
+        self.calls = 0
+        self._cond = threading.Condition()
+
+    def evaluator(self, unit: int):
+        return lambda chunk: self.evaluate(unit, chunk)
+
+    def evaluate(self, unit: int, chunk) -> np.ndarray:
+        """Log-densities of ``chunk`` (n, dim) of ``unit``, once every running unit has a chunk in."""
+        with self._cond:
+            self.waiting[unit] = np.asarray(chunk, dtype=float)
+            self._call_if_complete()
+            while unit not in self.done:
+                self._cond.wait()
+            out = self.done.pop(unit)
+        if isinstance(out, BaseException):
+            raise out
+        return out
+
+    def leave(self, unit: int) -> None:
+        """``unit`` asks for nothing more; the others no longer wait for it."""
+        with self._cond:
+            self.running.discard(unit)
+            self._call_if_complete()
+
+    def _call_if_complete(self) -> None:
+        # called with the lock held: every other running unit is waiting, nothing to overlap
+        if not self.waiting or not self.running <= set(self.waiting):
+            return
+        fill = next(iter(self.waiting.values()))
+        lanes = [self.waiting.get(i, self.last[i] if self.last[i] is not None else fill) for i in range(len(self.last))]
+        try:
+            lp = np.asarray(units_log_density(self.stacked, jnp.asarray(np.stack(lanes))), dtype=float)
+            results = {i: lp[i] for i in self.waiting}
+        except Exception as err:  # noqa: BLE001 — every waiting unit gets it, none hangs
+            results = {i: err for i in self.waiting}
+        self.calls += 1
+        for i, chunk in self.waiting.items():
+            self.last[i] = chunk
+        self.waiting.clear()
+        self.done.update(results)
+        self._cond.notify_all()
+
+
+def _sample_one(batcher: UnitBatcher, unit: int, problem, map_result, kwargs: dict, out: list) -> None:
+    try:
+        out[unit] = run_sampler(problem, map_result, evaluate=batcher.evaluator(unit), **kwargs)
+    except Exception as err:  # noqa: BLE001 — one unit's failure is its own result
+        out[unit] = err
+    finally:
+        batcher.leave(unit)
+
+
+def run_samplers(problems: list, map_results: list, kwargs: list[dict]) -> list:
+    """``run_sampler(problems[i], map_results[i], **kwargs[i])`` for every unit (all of one
+    shape and walker count), advanced together; one ``SampleResult`` — or the exception that
+    unit raised — per unit. One unit runs directly, without threads."""
+    if len(problems) == 1:
+        try:
+            return [run_sampler(problems[0], map_results[0], **kwargs[0])]
+        except Exception as err:  # noqa: BLE001
+            return [err]
+    batcher = UnitBatcher(problems)
+    out: list = [None] * len(problems)
+    threads = [threading.Thread(target=_sample_one, args=(batcher, i, p, m, k, out), daemon=True,
+                                name=f"emcee-unit-{i}")
+               for i, (p, m, k) in enumerate(zip(problems, map_results, kwargs))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return out
