@@ -31,3 +31,10 @@ def machine(**versions: str) -> dict:
                    f"XLA_FLAGS={os.environ.get('XLA_FLAGS', '(unset)')}, persistent JAX compilation cache "
                    f"{'on: ' + str(cache) if cache else 'off'}",
     }
+
+
+def write_report(path, lines: list[str]) -> None:
+    """Write a benchmark's Markdown lines to ``path`` (folders made) and print them."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))

@@ -73,7 +73,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     k = max(1, args.units // 100) if args.posterior is None else args.posterior
     sys.path.insert(0, str(HERE))
-    from _machine import machine
+    from _machine import machine, write_report
 
     t_start = time.perf_counter()
     load_start = _load()
@@ -166,9 +166,7 @@ def main(argv=None) -> int:
         "",
         "Command for the issue's full run (1 000 units): `.venv/bin/python benchmarks/bench_batch.py`.",
     ]
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_report(args.output, lines)
     return 0
 
 

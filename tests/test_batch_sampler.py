@@ -52,7 +52,7 @@ def _same_chain(a, b):
 
 def test_units_sampled_together_equal_each_alone_also_when_they_stop_at_different_steps(units):
     """Three units with their own seeds and max_steps 40, 60, 100: the first two stop early
-    (unconverged, as run_sampler does) and the third goes on alone in its padded lane."""
+    (unconverged, as run_sampler does) and the calls shrink to two lanes, then to one."""
     problems, starts = zip(*units)
     kwargs = [{**SHORT, "seed": s, "max_steps": n} for s, n in ((0, 40), (5, 60), (9, 100))]
     with warnings.catch_warnings():
@@ -79,7 +79,7 @@ def test_a_unit_that_fails_is_its_result_and_the_others_go_on(units):
 
 
 def test_batcher_waits_only_for_running_units(units):
-    """One call per round of chunks; a unit that left is filled with its last chunk."""
+    """One call per round of chunks, on the running units' lanes only."""
     problems, starts = zip(*units)
     batcher = UnitBatcher(list(problems))
     chunk = np.tile(starts[0].u, (16, 1))
@@ -87,3 +87,4 @@ def test_batcher_waits_only_for_running_units(units):
     batcher.leave(2)
     lp = batcher.evaluate(0, chunk)
     assert lp.shape == (16,) and np.all(np.isfinite(lp)) and batcher.calls == 1
+    assert batcher._stacked[0] == (0,)  # one lane: the units that left are not computed on

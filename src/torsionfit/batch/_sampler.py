@@ -5,11 +5,15 @@ are gathered into one call of a jitted vmap(units)∘vmap(walkers) log-density.
 Each sampler hands its (walkers/2, dim) chunk to a shared :class:`UnitBatcher` and waits; when
 every still-running unit has handed one in, the last one to arrive makes the call for all and
 each gets its slice. A unit that has stopped (converged, at ``max_steps`` or failed) leaves the
-batcher; its lane is filled with its last chunk, so the compiled shape stays fixed. Every unit
-follows exactly the chain it would alone: the same proposals from its own random state, the
-same log-density values (to rounding), the same stopping rule.
+batcher. The call stacks the running units only, padded with copies up to a power of two (or
+the group's size): a stopped unit's lane is not computed on, yet a group of K compiles at most
+⌈log₂ K⌉ + 1 shapes. (Padding to the full group instead cost 1.25–1.57× the time of one unit
+after another when half the units stopped halfway: a lane costs the same whether used or not.)
+Every unit follows exactly the chain it would alone: the same proposals from its own random
+state, the same log-density values (to rounding), the same stopping rule.
 """
 
+import math
 import threading
 
 import equinox as eqx
@@ -30,12 +34,12 @@ class UnitBatcher:
     ``evaluator(i)`` is unit i's ``evaluate`` for ``run_sampler``; ``leave(i)`` when it stops."""
 
     def __init__(self, problems: list):
-        self.stacked = stack_problems(problems)
+        self.problems = list(problems)
         self.running = set(range(len(problems)))
         self.waiting: dict[int, np.ndarray] = {}
         self.done: dict[int, object] = {}  # unit → its log-densities, or the call's exception
-        self.last: list = [None] * len(problems)  # each unit's last chunk: the filler of its lane
         self.calls = 0
+        self._stacked: tuple = ((), None)  # (lanes, their stacked problem) of the last call
         self._cond = threading.Condition()
 
     def evaluator(self, unit: int):
@@ -63,19 +67,29 @@ class UnitBatcher:
         # called with the lock held: every other running unit is waiting, nothing to overlap
         if not self.waiting or not self.running <= set(self.waiting):
             return
-        fill = next(iter(self.waiting.values()))
-        lanes = [self.waiting.get(i, self.last[i] if self.last[i] is not None else fill) for i in range(len(self.last))]
+        units = sorted(self.waiting)
+        lanes = tuple(units + units[:1] * (_lane_count(len(units), len(self.problems)) - len(units)))
         try:
-            lp = np.asarray(units_log_density(self.stacked, jnp.asarray(np.stack(lanes))), dtype=float)
-            results = {i: lp[i] for i in self.waiting}
+            lp = np.asarray(units_log_density(self._stack(lanes), jnp.asarray(np.stack([self.waiting[i] for i in lanes]))),
+                            dtype=float)
+            results = {i: lp[k] for k, i in enumerate(units)}
         except Exception as err:  # noqa: BLE001 — every waiting unit gets it, none hangs
-            results = {i: err for i in self.waiting}
+            results = {i: err for i in units}
         self.calls += 1
-        for i, chunk in self.waiting.items():
-            self.last[i] = chunk
         self.waiting.clear()
         self.done.update(results)
         self._cond.notify_all()
+
+    def _stack(self, lanes: tuple):
+        """The stacked problem of ``lanes`` (unit indices), restacked only when they change."""
+        if self._stacked[0] != lanes:
+            self._stacked = (lanes, stack_problems([self.problems[i] for i in lanes]))
+        return self._stacked[1]
+
+
+def _lane_count(running: int, group: int) -> int:
+    """Lanes of a call: the next power of two of the running units, at most the group's size."""
+    return min(group, 2 ** math.ceil(math.log2(running)))
 
 
 def _sample_one(batcher: UnitBatcher, unit: int, problem, map_result, kwargs: dict, out: list) -> None:
