@@ -100,9 +100,7 @@ def _cmd_fit(args) -> int:
 
 def _cmd_diagnose(args) -> int:
     from .diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
-    from .io import load_campaign
-
-    from .io import decimate
+    from .io import decimate, load_campaign
 
     campaign = decimate(load_campaign(args.campaign), args.decimate)
     options = DiagnoseOptions(initial_effects=_parse_effects(args.with_))
