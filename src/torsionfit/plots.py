@@ -101,11 +101,11 @@ def component_draws(problem, u_batch, run_index: int, idx):
     return components_over_draws(problem, u_batch, {run_index: idx})[run_index]
 
 
-def _band(ax, x, draws, color, label=None, alpha=0.25):
-    """Median line and 95 % band of ``draws`` (draws, n) along ``x``."""
-    lo, mid, hi = np.percentile(draws, [2.5, 50, 97.5], axis=0)
+def band(ax, x, draws, color, label=None, alpha=0.25, lw=0.8, ls="-"):
+    """Median line and central 95 % band of ``draws`` (draws, points) along ``x``."""
+    lo, mid, hi = np.percentile(np.asarray(draws), [2.5, 50, 97.5], axis=0)
     ax.fill_between(x, lo, hi, color=color, alpha=alpha, lw=0)
-    ax.plot(x, mid, "-", color=color, lw=0.8, label=label)
+    ax.plot(x, mid, ls, color=color, lw=lw, label=label)
 
 
 def write_fit_figures(fit, folder) -> list:
@@ -159,7 +159,7 @@ def write_fit_figures(fit, folder) -> list:
                 if name in comps and np.max(np.abs(comps[name])) > 0:
                     color, label = COMPONENT_STYLE[name]
                     # plot along the last full loop only (steps 2–5) so bands are readable
-                    _band(ax, tau, _arcmin(comps[name]), color, label)
+                    band(ax, tau, _arcmin(comps[name]), color, label)
             ax.axhline(0, color="0.8", lw=0.5)
             ax.set_xlabel("torque (N·m)")
             ax.set_ylabel("component of the twist (arcmin)")

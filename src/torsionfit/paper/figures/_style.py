@@ -8,6 +8,7 @@ matplotlib.use("Agg")  # files only
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ... import plots  # noqa: E402
 from .._published import SYNTHETIC_LABEL  # noqa: E402
 
 FOOTER = f"{SYNTHETIC_LABEL} (Cheng et al. 2023, Tables 4 and 6); not the paper's measurements — torsionfit paper"
@@ -36,10 +37,8 @@ def save(fig, out_dir, stem: str, title: str) -> list[Path]:
 
 
 def band(ax, x, draws, color, label=None, alpha=0.25, lw=1.0, ls="-"):
-    """Median line and central 95 % band of ``draws`` (draws, points) along ``x``."""
-    lo, mid, hi = np.percentile(np.asarray(draws), [2.5, 50, 97.5], axis=0)
-    ax.fill_between(x, lo, hi, color=color, alpha=alpha, lw=0)
-    ax.plot(x, mid, ls, color=color, lw=lw, label=label)
+    """``torsionfit.plots.band`` with the paper figures' line width."""
+    plots.band(ax, x, draws, color, label, alpha, lw, ls)
 
 
 def per_deg(k_Nm_per_arcmin):
