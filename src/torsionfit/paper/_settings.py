@@ -7,7 +7,8 @@ Why Laplace by default: emcee on the bundled small campaign had not converged af
 (20 min on the shared 2-core machine; R̂ max 1.03): the slowest parameter, the noise above the
 encoder floor of one loop (τ ≈ 815 steps), sits in a funnel — the synthetic angles are quantised truth, so the
 noise is at the floor and its scale is not identified. (Measured with the earlier moves,
-DE 0.8 + stretch 0.2, not re-run with the Laplace move.) ``--sampler emcee`` runs it anyway and
+DE 0.8 + stretch 0.2; with the Laplace move a 6000-step run still had τ_max ≈ 850, for a speed
+term of the compliance: see the README.) ``--sampler emcee`` runs it anyway and
 reports ``converged: false`` when it is not."""
 
 import dataclasses
