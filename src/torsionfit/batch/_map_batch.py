@@ -15,7 +15,7 @@ import numpy as np
 import optimistix as optx
 
 from ..fit import MapResult, best_start, iid_noise, laplace_from_parts, map_starts
-from ..fit._map import _message, _noise_update, _physics_jacobian, _solve
+from ..fit._map import _message, laplace_parts, noise_pass
 from ._shape import stack_problems
 
 
@@ -25,12 +25,10 @@ def _all_starts(problems, starts, noise0, solver, max_steps: int, noise_passes: 
     ``starts`` (units, starts, n_nonlinear), ``noise0`` (units, n_noise)."""
 
     def one_start(problem, u_phys, u_noise):
-        result = None
+        result = ld = None
         for _ in range(noise_passes):
-            u_phys, result, _ = _solve(problem, u_phys, u_noise, solver, max_steps)
-            u_noise = _noise_update(problem, jnp.concatenate([u_phys, u_noise]))
-        u = jnp.concatenate([u_phys, u_noise])
-        return u, result, problem.log_density(u)
+            u_phys, u_noise, result, ld = noise_pass(problem, u_phys, u_noise, solver, max_steps)
+        return jnp.concatenate([u_phys, u_noise]), result, ld
 
     def one_unit(problem, unit_starts, u_noise):
         return jax.vmap(one_start, in_axes=(None, 0, None))(problem, unit_starts, u_noise)
@@ -38,15 +36,8 @@ def _all_starts(problems, starts, noise0, solver, max_steps: int, noise_passes: 
     return eqx.filter_vmap(one_unit)(problems, starts, noise0)
 
 
-@eqx.filter_jit
-def _laplace_parts(problems, u):
-    """Per unit at u (units, dim): physics Jacobian, (σ_r, ρ_r) and every parameter value."""
-
-    def one(problem, x):
-        sigma, rho = problem.noise_values(x)
-        return _physics_jacobian(problem, x), sigma, rho, problem.full_values(x)
-
-    return eqx.filter_vmap(one)(problems, u)
+#: per unit at u (units, dim): physics Jacobian, (σ_r, ρ_r) and every parameter value
+_laplace_parts = eqx.filter_jit(eqx.filter_vmap(laplace_parts))
 
 
 def _take(tree, *index):

@@ -53,13 +53,16 @@ def _noise_update(problem: FitProblem, u):
     return jnp.stack(log_s + logits)
 
 
-@eqx.filter_jit
-def _solve_pass(problem: FitProblem, u_phys, u_noise, solver, max_steps: int):
+def noise_pass(problem: FitProblem, u_phys, u_noise, solver, max_steps: int):
     """One noise pass of ``fit_map``: LM on the physics, then the closed-form noise update, and
-    the log density there — one compiled program (compilation dominates a cold fit)."""
+    the log density there: (u_phys, u_noise, solver result, log density)."""
     u_phys, result, _ = _solve(problem, u_phys, u_noise, solver, max_steps)
     u_noise = _noise_update(problem, jnp.concatenate([u_phys, u_noise]))
     return u_phys, u_noise, result, problem.log_density(jnp.concatenate([u_phys, u_noise]))
+
+
+#: one compiled program per pass (compilation dominates a cold fit)
+_solve_pass = eqx.filter_jit(noise_pass)
 
 
 def _physics_jacobian(problem: FitProblem, u):
@@ -67,11 +70,13 @@ def _physics_jacobian(problem: FitProblem, u):
     return jax.jacfwd(lambda a: _lm_residuals(a, (problem, u[n:])))(u[:n])
 
 
-@eqx.filter_jit
-def _laplace_parts(problem: FitProblem, u):
-    """At u: the physics Jacobian, (σ_r, ρ_r) and every parameter value, compiled together."""
+def laplace_parts(problem: FitProblem, u):
+    """At u: the physics Jacobian, (σ_r, ρ_r) and every parameter value."""
     sigma, rho = problem.noise_values(u)
     return _physics_jacobian(problem, u), sigma, rho, problem.full_values(u)
+
+
+_laplace_parts = eqx.filter_jit(laplace_parts)
 
 
 def laplace_covariance(problem: FitProblem, u) -> np.ndarray:

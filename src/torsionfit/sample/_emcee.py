@@ -61,6 +61,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._chunks import map_chunks
 from ._laplace_move import LaplaceMove
 
 __all__ = ["BufferedHDFBackend", "ConvergenceWarning", "SampleResult", "batch_log_density",
@@ -148,11 +149,7 @@ class _LogProb:
         # non-finite rows are replaced by a finite one (then rejected) so that no inf or
         # NaN ever enters the JAX function
         safe = np.where(ok[:, None], coords, 0.0)
-        n = len(safe)
-        batch = self.batch or n
-        padded = np.concatenate([safe, np.repeat(safe[:1], -n % batch, axis=0)])
-        lp = np.concatenate([np.asarray(self.evaluate(chunk), dtype=float)
-                             for chunk in np.split(padded, len(padded) // batch)])[:n]
+        lp = np.array(map_chunks(self.evaluate, safe, self.batch or len(safe)), dtype=float)
         lp[~ok | ~np.isfinite(lp)] = -np.inf
         return lp
 
