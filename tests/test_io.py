@@ -595,7 +595,7 @@ def test_example_loads_real_loops(shared_data, path):
     assert campaign.reducer.rated_torque_Nm == 20.0
     assert campaign.instrument.encoder_resolution_arcsec == pytest.approx(19.78, abs=0.01)
     (run,) = campaign.runs
-    assert isinstance(run, HysteresisRun) and run.source.startswith(str(shared_data))
+    assert isinstance(run, HysteresisRun) and run.source.startswith(str(shared_data.resolve()))
     assert 20_000 < len(run) < 30_000  # three stiffness ramps at ~430 rows/s
     assert np.all(np.diff(run.time_s) >= 0) and 55 < np.ptp(run.time_s) < 65
     assert run.torque_Nm.min() < -20 and run.torque_Nm.max() > 20  # ramps reach ±25..40 N·m
