@@ -14,8 +14,8 @@ import pytest
 from torsionfit._errors import InputError
 from torsionfit.bench import load_bench, simulate
 from torsionfit.accept import load_spec
-from torsionfit.batch import (BatchOptions, ROW_FILE, executor, fit_map_batch, group_by_shape, posterior_sample,
-                              run_batch, shape_key, stored_row, unit_tasks)
+from torsionfit.batch import (BatchOptions, ROW_FILE, UnitTask, executor, fit_map_batch, group_by_shape, packets,
+                              posterior_sample, run_batch, shape_key, stored_row, unit_tasks)
 from torsionfit.cli import main
 from torsionfit.fit import fit_map
 from torsionfit.io import write_campaign
@@ -57,15 +57,16 @@ def spec_file(tmp_path_factory):
     return path
 
 
-def _argv(line, out, *extra):
-    return ["batch", str(line), "-o", str(out), "--decimate", str(DECIMATE), *extra]
+def _argv(line, out, *extra, workers=1):
+    return ["batch", str(line), "-o", str(out), "--decimate", str(DECIMATE), "--workers", str(workers), *extra]
 
 
 @pytest.fixture(scope="module")
 def first_run(line, spec_file, tmp_path_factory):
-    """The folder through the command line, with a spec (stiffness ≥ 80 and ≥ 200 N·m/arcmin)."""
+    """The folder through the command line, with a spec (stiffness ≥ 80 and ≥ 200 N·m/arcmin), in
+    two worker processes (two packets of two units)."""
     out = tmp_path_factory.mktemp("out")
-    code = main(_argv(line, out, "--spec", str(spec_file)))
+    code = main(_argv(line, out, "--spec", str(spec_file), workers=2))
     return out, code, json.loads((out / "batch.json").read_text())["units"]
 
 
@@ -110,7 +111,8 @@ def test_rerun_skips_done_units_and_force_redoes_them(first_run, line, spec_file
     assert main(_argv(line, out, "--spec", str(spec_file), "--force")) == 2
     assert "0 already done, 4 to do" in capsys.readouterr().err
     assert all((out / n / "fit.json").stat().st_mtime_ns > stamp[n] for n in GOOD)
-    assert json.loads((out / "batch.json").read_text())["units"] == rows  # same seed, same numbers
+    # same seed, same numbers: this run in this process, the first in two worker processes
+    assert json.loads((out / "batch.json").read_text())["units"] == rows
 
 
 def test_incomplete_or_changed_units_are_not_done(first_run, line, spec_file, tmp_path):
@@ -132,7 +134,7 @@ def test_vmapped_map_equals_fit_map_per_unit(bench):
     problems = [prepare_fit(simulate(bench, seed=s).campaign, FitOptions(decimate=DECIMATE))[2] for s in (1, 2)]
     assert shape_key(problems[0]) == shape_key(problems[1])
     seeds = [0, 7]  # each unit its own seed: its own starts
-    together = fit_map_batch(problems, [("h", "t")] * 2, seeds)
+    together = fit_map_batch(problems, [("h", "t")] * 2, seeds, lanes="vmap")
     for problem, seed, b in zip(problems, seeds, together):
         a = fit_map(problem, ("h", "t"), seed=seed)
         scale = np.maximum(np.abs(a.u), 1.0)
@@ -165,6 +167,26 @@ def test_unreachable_scheduler_is_one_line_input_error():
     with pytest.raises(InputError, match="cannot reach a Dask scheduler"):
         with executor("tcp://127.0.0.1:9", timeout_s=2):
             pass
+
+
+def test_packets_keep_emcee_units_apart_and_give_every_worker_work(tmp_path):
+    tasks = [UnitTask(f"u{i}", tmp_path / f"u{i}.toml", tmp_path / f"o{i}") for i in range(7)]
+    options = BatchOptions(posterior_units=frozenset({"u1", "u4"}), group_size=2)
+    sizes = lambda work: [[t.unit for t in p] for p in work]  # noqa: E731
+    assert sizes(packets(tasks, options)) == [["u0", "u2"], ["u3", "u5"], ["u6"], ["u1", "u4"]]
+    assert sizes(packets(tasks, replace(options, group_size=16), workers=2)) == [["u0", "u2", "u3"], ["u5", "u6"],
+                                                                               ["u1"], ["u4"]]
+    assert packets([], options, workers=2) == []
+
+
+@pytest.mark.parametrize("extra, message", [(("--workers", "0"), "--workers ≥ 1"),
+                                            (("--workers", "2", "--scheduler", "tcp://127.0.0.1:9"),
+                                             "--workers is for this machine")])
+def test_bad_workers_option_is_one_line_input_error(line, tmp_path, capsys, extra, message):
+    argv = ["batch", str(line), "-o", str(tmp_path / "out"), *extra]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err
 
 
 def test_group_by_shape_and_posterior_sample():

@@ -140,12 +140,14 @@ def _cmd_batch(args) -> int:
     import hashlib
 
     from .accept import load_spec
-    from .batch import BatchOptions, exit_code, posterior_sample, run_batch, unit_tasks
+    from .batch import BatchOptions, exit_code, posterior_sample, run_batch, unit_tasks, usable_cpus
     from .report import FitOptions
 
     spec = load_spec(args.spec) if args.spec else None
-    if args.posterior_sample < 0 or args.group_size < 1:
-        raise InputError("--posterior-sample must be ≥ 0 and --group-size ≥ 1")
+    if args.posterior_sample < 0 or args.group_size < 1 or (args.workers is not None and args.workers < 1):
+        raise InputError("--posterior-sample must be ≥ 0, --group-size ≥ 1 and --workers ≥ 1")
+    if args.workers is not None and args.scheduler:
+        raise InputError("--workers is for this machine; with --scheduler the Dask cluster's workers run the units")
     units = [t.unit for t in unit_tasks(args.folder, args.output)]
     options = BatchOptions(
         fit=FitOptions(effects=_parse_effects(args.with_), sampler=args.sampler, max_steps=args.max_steps,
@@ -154,7 +156,9 @@ def _cmd_batch(args) -> int:
         posterior_units=posterior_sample(units, args.posterior_sample, args.seed),
         figures=args.figures, group_size=args.group_size, seed=args.seed)
     say = _progress("batch")
-    rows = run_batch(args.folder, args.output, options, scheduler=args.scheduler, force=args.force, progress=say)
+    workers = args.workers if args.workers is not None else usable_cpus()
+    rows = run_batch(args.folder, args.output, options, scheduler=args.scheduler, force=args.force, progress=say,
+                     workers=workers)
     counts = {}
     for row in rows:
         key = row.get("decision") or ("error" if row["status"] == "error" else
@@ -306,7 +310,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_max_steps(p)
     _add_with(p)
     _add_decimate(p)
-    p.add_argument("--group-size", type=int, default=16, metavar="G", help="units of one shape fitted together, at most (default 16)")
+    p.add_argument("--group-size", type=int, default=16, metavar="G",
+                   help="units per packet (one task of a worker; its units of one shape fitted together), at most (default 16)")
+    p.add_argument("--workers", type=int, default=None, metavar="W",
+                   help="worker processes on this machine (default: one per usable CPU; 1 = this process)")
     p.add_argument("--figures", action="store_true", help="also write each unit's figures")
     p.add_argument("--force", action="store_true", help="redo units already done")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",

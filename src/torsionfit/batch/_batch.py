@@ -1,5 +1,6 @@
-"""Every campaign under a folder: units grouped by problem shape, each group fitted together
-(here or on Dask workers), one row per unit in ``OUT/batch.csv`` and ``OUT/batch.json``."""
+"""Every campaign under a folder: units in packets of consecutive units, the units of one
+shape in a packet fitted together (here, in worker processes or on Dask workers), one row per
+unit in ``OUT/batch.csv`` and ``OUT/batch.json``."""
 
 from functools import partial
 from pathlib import Path
@@ -10,8 +11,7 @@ from ..io._manifest import MANIFEST_NAME
 from ._executor import executor
 from ._group import fit_group
 from ._options import BatchOptions
-from ._shape import group_by_shape
-from ._unit import ERROR, UnitTask, stored_row, unit_shape, write_row
+from ._unit import ERROR, UnitTask, stored_row
 
 TABLE_NAME = "batch"
 COLUMNS = ("unit", "status", "decision", "p_conform", "sampler", "converged", "map_converged", "reason", "shape",
@@ -31,11 +31,31 @@ def unit_tasks(folder, out_dir) -> list[UnitTask]:
     return tasks
 
 
+def packets(tasks: list[UnitTask], options: BatchOptions, workers: int = 1) -> list[list[UnitTask]]:
+    """The units in packets of consecutive units, one packet per call of ``fit_group``: the emcee
+    units apart from the others (a packet's emcee units are sampled together), at most
+    ``options.group_size`` per packet, and small enough that ``workers`` processes all get
+    work. Sizes within a kind differ by at most one."""
+    out = []
+    for sampler in dict.fromkeys(options.sampler_of(t.unit) for t in tasks):
+        kind = [t for t in tasks if options.sampler_of(t.unit) == sampler]
+        n = max(-(-len(kind) // options.group_size), min(workers, len(kind)))
+        size, extra = divmod(len(kind), n)
+        start = 0
+        for i in range(n):
+            stop = start + size + (i < extra)
+            out.append(kind[start:stop])
+            start = stop
+    return out
+
+
 def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler: str | None = None,
-              force: bool = False, progress=None) -> list[dict]:
+              force: bool = False, progress=None, workers: int = 1) -> list[dict]:
     """Analyse every unit under ``folder`` into ``out_dir``; returns one row per unit (sorted by
     unit) and writes ``batch.csv`` / ``batch.json``. Units complete from an earlier run with
-    the same settings are kept unless ``force``. ``progress(text)`` is told what happens."""
+    the same settings are kept unless ``force``. The packets (:func:`packets`) run here, in
+    ``workers`` processes of this machine, or on the Dask cluster at ``scheduler``; each sets up
+    its units and fits those of one shape together. ``progress(text)`` is told what happens."""
     say = progress or (lambda text: None)
     tasks = unit_tasks(folder, out_dir)
     rows: dict[str, dict] = {}
@@ -47,21 +67,17 @@ def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler
         else:
             rows[task.unit] = row
     say(f"{len(tasks)} units: {len(rows)} already done, {len(todo)} to do")
-    with executor(scheduler) as run_map:
-        shapes = list(run_map(partial(unit_shape, options=options), todo))
-        for task, (_, err_row) in zip(todo, shapes):
-            if err_row is not None:  # a unit in error is told in its folder too
-                rows[task.unit] = err_row
-                write_row(task, err_row, options)
-        # emcee units apart from the others: a group's emcee units are sampled together
-        keys = [k and f"{k}:{options.sampler_of(t.unit)}" for t, (k, _) in zip(todo, shapes)]
-        groups = [[todo[i] for i in g] for g in group_by_shape(keys, options.group_size)]
-        say(f"{len(groups)} groups of up to {options.group_size} units of one shape")
-        results = run_map(partial(fit_group, options=options), groups)
-        for n, (group, group_rows) in enumerate(zip(groups, results), start=1):
-            rows.update({t.unit: r for t, r in zip(group, group_rows)})
-            failed = sum(r["status"] == ERROR for r in group_rows)
-            say(f"group {n}/{len(groups)}: {len(group)} units done" + (f", {failed} in error" if failed else ""))
+    work = packets(todo, options, workers if scheduler is None else 1)
+    workers = min(workers, len(work)) if scheduler is None else workers
+    where = f"on the Dask cluster at {scheduler}" if scheduler else \
+        f"in {workers} worker processes" if workers > 1 else "in this process"
+    say(f"{len(work)} packets of up to {options.group_size} units, {where}")
+    with executor(scheduler, workers=max(workers, 1)) as run_map:
+        results = run_map(partial(fit_group, options=options), work)
+        for n, (packet, packet_rows) in enumerate(zip(work, results), start=1):
+            rows.update({t.unit: r for t, r in zip(packet, packet_rows)})
+            failed = sum(r["status"] == ERROR for r in packet_rows)
+            say(f"packet {n}/{len(work)}: {len(packet)} units done" + (f", {failed} in error" if failed else ""))
     ordered = [rows[t.unit] for t in tasks]
     write_batch_table(ordered, out_dir, name=TABLE_NAME, columns=tuple(c for c in COLUMNS if any(c in r for r in ordered)))
     return ordered

@@ -1,23 +1,61 @@
-"""Where the work runs: this process, or a Dask distributed cluster (``--scheduler ADDRESS``).
-An executor maps a picklable function over a list and yields the results in order, each as
-soon as it (and those before it) are done."""
+"""Where the work runs: this process, ``workers`` processes of this machine, or a Dask
+distributed cluster (``--scheduler ADDRESS``). An executor maps a picklable function over a
+list and yields the results in order, each as soon as it (and those before it) are done."""
 
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 
+import jax
+
 from .._errors import InputError
+
+#: one XLA thread per worker process: the processes fill the cores, a second thread in each
+#: only contends (the same setting as the test suite's workers)
+WORKER_XLA_FLAGS = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+
+
+def usable_cpus() -> int:
+    """CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def local_map(fn, items: list):
     return (fn(x) for x in items)
 
 
+def _start_worker(cache_dir: str | None, xla_flags: str | None) -> None:
+    """In a fresh worker process, before any JAX computation: the parent's compilation cache
+    (so a shape compiled once on this machine is read from disk) and the XLA threads."""
+    if xla_flags is not None:
+        os.environ["XLA_FLAGS"] = xla_flags
+    if cache_dir:
+        from .._cache import enable_compilation_cache
+
+        enable_compilation_cache(cache_dir)
+
+
 @contextmanager
-def executor(scheduler: str | None = None, timeout_s: float = 30.0):
-    """A map over ``items`` here (``scheduler`` None) or on the Dask scheduler at ``scheduler``
-    (e.g. ``tcp://10.0.0.5:8786``); InputError when Dask is missing or the scheduler cannot be
-    reached."""
+def executor(scheduler: str | None = None, timeout_s: float = 30.0, workers: int = 1):
+    """A map over ``items``: here (``workers`` 1), in ``workers`` fresh processes of this
+    machine, or on the Dask scheduler at ``scheduler`` (e.g. ``tcp://10.0.0.5:8786``);
+    InputError when Dask is missing or the scheduler cannot be reached."""
     if scheduler is None:
-        yield local_map
+        if workers < 1:
+            raise InputError(f"--workers must be at least 1, got {workers}")
+        if workers == 1:
+            yield local_map
+            return
+        # spawn, not fork: a forked JAX runtime (threads, XLA state) is not safe to use
+        flags = os.environ.get("XLA_FLAGS") or WORKER_XLA_FLAGS
+        cache = jax.config.jax_compilation_cache_dir
+        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                 initializer=_start_worker, initargs=(cache, flags)) as pool:
+            yield lambda fn, items: pool.map(fn, items)
         return
     try:
         from distributed import Client

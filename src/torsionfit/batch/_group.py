@@ -1,20 +1,20 @@
-"""The work of one shape group, wherever it runs (this process or a Dask worker): set up every
-unit's problem, MAP + Laplace for all of them together, the emcee units' posteriors together,
-then each unit's metrics, decision and files. A unit that fails gets an error row; the others
-go on."""
+"""The work of one packet of units, wherever it runs (this process, a worker process or a Dask
+worker): set up every unit's problem; for the units of each shape, MAP + Laplace together and
+the emcee units' posteriors together; then each unit's metrics, decision and files. A unit
+that fails gets an error row; the others go on."""
 
 from ..fit import fit_map
 from ..report import sampler_kwargs
 from ._map_batch import fit_map_batch
 from ._options import EMCEE, BatchOptions
 from ._sampler import run_samplers
-from ._shape import shape_key
+from ._shape import group_by_shape, shape_key
 from ._unit import UnitTask, error_row, finish_unit, prepare_unit, write_row
 
 
 def _map_each(problems, names, options: BatchOptions) -> list:
-    """MAP of every problem together; if that fails as a whole, one at a time (so a unit that
-    breaks the batched solve costs only itself)."""
+    """MAP of every problem together (``fit_map_batch``); if a vmapped solve fails as a whole,
+    one at a time (so a unit that breaks it costs only itself)."""
     kwargs = {"n_starts": options.fit.n_starts}
     try:
         return fit_map_batch(problems, names, [options.seed] * len(problems), **kwargs)
@@ -41,7 +41,7 @@ def _sample_each(tasks, prepared: dict, idx: list[int], maps: list, options: Bat
 
 
 def fit_group(tasks: list[UnitTask], options: BatchOptions) -> list[dict]:
-    """Rows of ``tasks`` (units of one shape), in order; each unit's files and row file written."""
+    """Rows of ``tasks`` (a packet), in order; each unit's files and row file written."""
     rows: list[dict | None] = [None] * len(tasks)
     prepared = {}
     for i, task in enumerate(tasks):
@@ -49,9 +49,9 @@ def fit_group(tasks: list[UnitTask], options: BatchOptions) -> list[dict]:
             prepared[i] = prepare_unit(task, options)
         except Exception as err:  # noqa: BLE001 — one unit must not stop the batch
             rows[i] = error_row(task, err, options)
-    keys = {i: shape_key(p[3]) for i, p in prepared.items()}
-    for key in dict.fromkeys(keys.values()):  # normally one shape; more if a file changed meanwhile
-        idx = [i for i in prepared if keys[i] == key]
+    keys = [shape_key(prepared[i][3]) if i in prepared else None for i in range(len(tasks))]
+    for idx in group_by_shape(keys, options.group_size):  # normally one shape; more in a folder of mixed units
+        key = keys[idx[0]]
         maps = _map_each([prepared[i][3] for i in idx], [[r.name for r in prepared[i][1].runs] for i in idx], options)
         samples = _sample_each(tasks, prepared, idx, maps, options)
         for i, map_result in zip(idx, maps):

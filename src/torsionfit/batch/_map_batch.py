@@ -1,12 +1,17 @@
-"""MAP and Laplace approximation for many units of one shape at once: ``fit_map`` vmapped over
-units × starts.
+"""MAP and Laplace approximation for many units of one shape: ``fit_map`` of each unit, either
+one after another or vmapped over units × starts.
 
-Every unit gets the starts ``fit_map`` would give it (its own seed), the same noise passes and
-the same choice of the best start; the Levenberg–Marquardt loops run side by side (a batched
+Vmapped, every unit gets the starts ``fit_map`` would give it (its own seed), the same noise
+passes, the same sharing of the later passes by starts that reached the same optimum and the
+same choice of the best start; the Levenberg–Marquardt loops run side by side (a batched
 ``while_loop`` keeps a finished lane where it stopped, so each unit ends where it would alone).
-One compilation per shape and batch size; the per-sample work of the serial scans is shared by
-all lanes.
+On an accelerator the lanes share the serial scans' per-sample steps. On a CPU the lanes'
+work adds up (the scan is compute-bound) and every lane steps until the slowest has
+converged, so there ``fit_map`` one unit after another is faster (both reuse one compiled
+program per shape): ``lanes="auto"`` picks by backend.
 """
+
+from typing import Literal
 
 import equinox as eqx
 import jax
@@ -14,26 +19,28 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
-from ..fit import MapResult, best_start, iid_noise, laplace_from_parts, map_starts
-from ..fit._map import _message, laplace_parts, noise_pass
+from ..fit import MapResult, best_start, fit_map, iid_noise, laplace_from_parts, map_starts
+from ..fit._map import _message, laplace_parts, noise_pass, same_optimum
 from ._shape import stack_problems
+
+Lanes = Literal["auto", "serial", "vmap"]
 
 
 @eqx.filter_jit
-def _all_starts(problems, starts, noise0, solver, max_steps: int, noise_passes: int):
-    """(u, solver result of the last pass, log density) per unit × start.
-    ``starts`` (units, starts, n_nonlinear), ``noise0`` (units, n_noise)."""
+def _passes(problems, u_phys, u_noise, solver, max_steps: int, n_passes: int):
+    """``n_passes`` noise passes per lane: ``problems`` stacked per unit, ``u_phys`` / ``u_noise``
+    (units, lanes, ·). Returns (u_phys, u_noise, solver result, log density) per unit × lane."""
 
-    def one_start(problem, u_phys, u_noise):
+    def one_lane(problem, u_phys, u_noise):
         result = ld = None
-        for _ in range(noise_passes):
+        for _ in range(n_passes):
             u_phys, u_noise, result, ld = noise_pass(problem, u_phys, u_noise, solver, max_steps)
-        return jnp.concatenate([u_phys, u_noise]), result, ld
+        return u_phys, u_noise, result, ld
 
-    def one_unit(problem, unit_starts, u_noise):
-        return jax.vmap(one_start, in_axes=(None, 0, None))(problem, unit_starts, u_noise)
+    def one_unit(problem, u_phys, u_noise):
+        return jax.vmap(one_lane, in_axes=(None, 0, 0))(problem, u_phys, u_noise)
 
-    return eqx.filter_vmap(one_unit)(problems, starts, noise0)
+    return eqx.filter_vmap(one_unit)(problems, u_phys, u_noise)
 
 
 #: per unit at u (units, dim): physics Jacobian, (σ_r, ρ_r) and every parameter value
@@ -44,23 +51,64 @@ def _take(tree, *index):
     return jax.tree.map(lambda x: x[index], tree)
 
 
+def resolve_lanes(lanes: Lanes) -> Literal["serial", "vmap"]:
+    """``auto`` → serial on CPU, vmap elsewhere."""
+    if lanes == "auto":
+        return "serial" if jax.default_backend() == "cpu" else "vmap"
+    if lanes not in ("serial", "vmap"):
+        raise ValueError(f"lanes must be 'auto', 'serial' or 'vmap', not {lanes!r}")
+    return lanes
+
+
+def _serial(problems, run_names, seeds, **kwargs) -> list:
+    out = []
+    for problem, names, seed in zip(problems, run_names, seeds):
+        try:
+            out.append(fit_map(problem, names, seed=seed, **kwargs))
+        except Exception as err:  # noqa: BLE001 — that unit's error (e.g. every start failed), not the group's
+            out.append(err)
+    return out
+
+
 def fit_map_batch(problems: list, run_names: list, seeds: list[int], *, n_starts: int = 4,
                   max_steps: int = 300, noise_passes: int = 3, rtol: float = 1e-8,
-                  atol: float = 1e-10) -> list:
-    """``fit_map`` of every problem (all of one shape) with its seed, fitted together; one
-    ``MapResult`` — or the ``RuntimeError`` ``fit_map`` would raise — per unit."""
+                  atol: float = 1e-10, lanes: Lanes = "auto") -> list:
+    """``fit_map`` of every problem (all of one shape) with its seed; one ``MapResult`` — or the
+    exception ``fit_map`` raises for it (``RuntimeError`` when every start failed) — per unit.
+    ``lanes``: see the module docstring."""
+    kwargs = dict(n_starts=n_starts, max_steps=max_steps, noise_passes=noise_passes, rtol=rtol, atol=atol)
+    if resolve_lanes(lanes) == "serial":
+        return _serial(problems, run_names, seeds, **kwargs)
+    if noise_passes < 1:
+        raise ValueError(f"noise_passes must be at least 1, got {noise_passes}")
     stacked = stack_problems(problems)
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
+    n_units = len(problems)
     starts = jnp.asarray(np.stack([map_starts(p, n_starts, s) for p, s in zip(problems, seeds)]))
-    noise0 = jnp.stack([iid_noise(p) for p in problems])
-    u_all, results, lds = _all_starts(stacked, starts, noise0, solver, max_steps, noise_passes)
-    u_all, lds = np.asarray(u_all), np.asarray(lds, dtype=float)
+    noise0 = jnp.stack([jnp.broadcast_to(iid_noise(p), (n_starts,) + iid_noise(p).shape) for p in problems])
+    first = _passes(stacked, starts, noise0, solver, max_steps, 1)
+    # the later passes for each unit's distinct first-pass optima only (as fit_map); lanes padded
+    # by repeating a unit's first representative so every unit has the same number of lanes
+    reps = [same_optimum(np.asarray(first[0][i])) for i in range(n_units)]
+    distinct = [sorted(set(r)) for r in reps]
+    width = max(len(d) for d in distinct)
+    lane_of = np.array([d + [d[0]] * (width - len(d)) for d in distinct])
+    pick = lambda x: jnp.stack([x[i][lane_of[i]] for i in range(n_units)])  # noqa: E731
+    later = jax.tree.map(pick, first)
+    if noise_passes > 1:
+        later = _passes(stacked, later[0], later[1], solver, max_steps, noise_passes - 1)
+    u_phys, u_noise, results, lds = later
+    u_all = np.concatenate([np.asarray(u_phys), np.asarray(u_noise)], axis=-1)
+    lds = np.asarray(lds, dtype=float)
     ok_all = np.asarray(results == optx.RESULTS.successful)
     picked = []
-    for i in range(len(problems)):
-        messages = [_message(_take(results, i, j)) for j in range(n_starts)]
+    for i in range(n_units):
+        col = {j: distinct[i].index(j) for j in distinct[i]}  # start index → lane
+        lane = [col[r] for r in reps[i]]
+        messages = [_message(_take(results, i, k)) for k in lane]
         try:
-            picked.append(best_start(u_all[i], lds[i], ok_all[i], messages) + (messages,))
+            picked.append(best_start(u_all[i, lane], lds[i, lane], ok_all[i, lane], messages)
+                          + (messages, lds[i, lane]))
         except RuntimeError as err:
             picked.append(err)
     u_best = jnp.asarray(np.stack([p[0] if not isinstance(p, Exception) else u_all[i, 0]
@@ -71,9 +119,9 @@ def fit_map_batch(problems: list, run_names: list, seeds: list[int], *, n_starts
         if isinstance(p, Exception):
             out.append(p)
             continue
-        u, ld, ok, message, messages = p
+        u, ld, ok, message, messages, start_lds = p
         cov = laplace_from_parts(problem, u, jac[i], sigma[i], rho[i])
         out.append(MapResult(problem=problem, run_names=tuple(names), u=u, cov=cov,
                              values={k: np.asarray(v[i]) for k, v in values.items()}, log_density=ld,
-                             converged=ok, message=message, starts=list(zip(lds[i].tolist(), messages))))
+                             converged=ok, message=message, starts=list(zip(start_lds.tolist(), messages))))
     return out

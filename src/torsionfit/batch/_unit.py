@@ -12,7 +12,6 @@ from .._errors import error_line
 from ..io import load_campaign
 from ..report import finish_fit, prepare_fit, write_fit
 from ._options import BatchOptions
-from ._shape import shape_key
 
 ROW_FILE = "batch_row.json"
 DONE, ERROR = "done", "error"
@@ -40,14 +39,6 @@ def prepare_unit(task: UnitTask, options: BatchOptions):
     """(campaign, decimated campaign, model, problem) of the unit; InputError on bad input."""
     campaign = load_campaign(task.manifest)
     return (campaign,) + prepare_fit(campaign, options.fit_options_of(task.unit))
-
-
-def unit_shape(task: UnitTask, options: BatchOptions) -> tuple[str | None, dict | None]:
-    """(shape key, None), or (None, error row) for a unit that cannot be read or set up."""
-    try:
-        return shape_key(prepare_unit(task, options)[3]), None
-    except Exception as err:  # noqa: BLE001 — one unit must not stop the batch
-        return None, error_row(task, err, options)
 
 
 def _metric_columns(doc: dict) -> dict:

@@ -123,7 +123,7 @@ class MapResult:
     log_density: float
     converged: bool
     message: str  # optimistix's result for the chosen start
-    starts: list = field(default_factory=list)  # (log_density, message) per start
+    starts: list = field(default_factory=list)  # (log_density, message) per start (shared: same optimum)
 
     @property
     def names(self) -> list[str]:
@@ -176,25 +176,52 @@ def best_start(us, lds, oks, messages):
     return best
 
 
+#: starts whose first-pass optima agree to this (relative to max(|u|, 1)) share the later passes
+SAME_OPTIMUM_RTOL = 1e-6
+
+
+def same_optimum(firsts) -> list[int]:
+    """For each start's first-pass physics ``u``: the index of the first start that reached the
+    same optimum (itself when none before it did). Non-finite points are never merged."""
+    firsts = [np.asarray(u, float) for u in firsts]
+    rep = []
+    for j, u in enumerate(firsts):
+        match = j
+        if np.all(np.isfinite(u)):
+            for i in sorted(set(rep)):
+                v = firsts[i]
+                if np.all(np.isfinite(v)) and np.max(np.abs(u - v) / np.maximum(np.maximum(np.abs(u), np.abs(v)), 1.0)) < SAME_OPTIMUM_RTOL:
+                    match = i
+                    break
+        rep.append(match)
+    return rep
+
+
 def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int = 0,
             max_steps: int = 300, noise_passes: int = 3, rtol: float = 1e-8,
             atol: float = 1e-10) -> MapResult:
     """MAP by Levenberg–Marquardt from ``n_starts`` starts (the prior centre, then draws around
     it). The first pass treats the noise as iid (with ρ near 1 the whitened residuals are
     increments, and a fit from far away can match the loop's shape but not its level);
-    between passes the noise level and AR(1) coefficient are re-estimated in closed form."""
+    between passes the noise level and AR(1) coefficient are re-estimated in closed form.
+    Starts whose first pass ends at the same optimum (:data:`SAME_OPTIMUM_RTOL`) share the
+    later passes: they would repeat the same steps from the same point."""
+    if noise_passes < 1:
+        raise ValueError(f"noise_passes must be at least 1, got {noise_passes}")
     run_names = tuple(run_names or (f"run{i}" for i in range(problem.n_runs)))
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
     iid = iid_noise(problem)
-    us, lds, oks, messages = [], [], [], []
-    for start in map_starts(problem, n_starts, seed):
-        u_phys, u_noise = jnp.asarray(start), iid
-        for _ in range(noise_passes):
+    firsts = [_solve_pass(problem, jnp.asarray(start), iid, solver, max_steps)
+              for start in map_starts(problem, n_starts, seed)]
+    rep = same_optimum([f[0] for f in firsts])
+    finals = {}
+    for j in sorted(set(rep)):
+        u_phys, u_noise, result, ld = firsts[j]
+        for _ in range(noise_passes - 1):
             u_phys, u_noise, result, ld = _solve_pass(problem, u_phys, u_noise, solver, max_steps)
-        us.append(np.concatenate([np.asarray(u_phys), np.asarray(u_noise)]))
-        lds.append(float(ld))
-        oks.append(bool(result == optx.RESULTS.successful))
-        messages.append(_message(result))
+        finals[j] = (np.concatenate([np.asarray(u_phys), np.asarray(u_noise)]), float(ld),
+                     bool(result == optx.RESULTS.successful), _message(result))
+    us, lds, oks, messages = zip(*(finals[r] for r in rep))
     u, ld, ok, message = best_start(us, lds, oks, messages)
     jac, sigma, rho, values = _laplace_parts(problem, jnp.asarray(u))
     cov = laplace_from_parts(problem, u, jac, sigma, rho)
