@@ -66,14 +66,18 @@ def main(argv=None) -> int:
     parser.add_argument("--posterior", type=int, default=None, help="units with the emcee posterior (default units/100, at least 1)")
     parser.add_argument("--loop-units", type=int, default=3, help="loop units timed with --sampler laplace (default 3)")
     parser.add_argument("--group-size", type=int, default=16, help="batch --group-size (default 16)")
-    parser.add_argument("--workers", type=int, default=1,
-                        help="1: the batch in its own process (default); W > 1: on a local Dask cluster of W worker "
-                             "processes, one thread each (--scheduler), its start-up timed with the batch")
+    parser.add_argument("--workers", type=int, default=None,
+                        help="batch --workers: worker processes on this machine (default: the command's default, "
+                             "one per usable CPU)")
+    parser.add_argument("--dask-workers", type=int, default=0,
+                        help="instead: the batch on a local Dask cluster of this many worker processes, one thread "
+                             "each (--scheduler), its start-up timed with the batch")
     parser.add_argument("--output", type=Path, default=HERE / "results" / "batch.md")
     args = parser.parse_args(argv)
     k = max(1, args.units // 100) if args.posterior is None else args.posterior
     sys.path.insert(0, str(HERE))
     from _machine import machine, write_report
+    from torsionfit.batch import usable_cpus
 
     t_start = time.perf_counter()
     load_start = _load()
@@ -84,14 +88,17 @@ def main(argv=None) -> int:
     # --- the batch: one process, cold cache --------------------------------------------------
     batch_args = ["batch", str(work / "in"), "-o", str(work / "batch"), "--posterior-sample", str(k),
                   "--group-size", str(args.group_size)]
-    if args.workers > 1:
+    if args.dask_workers:
         from distributed import LocalCluster
 
         t0 = time.perf_counter()
-        with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        with LocalCluster(n_workers=args.dask_workers, threads_per_worker=1, processes=True,
+                          dashboard_address=None) as cluster:
             t_batch = _torsionfit(batch_args + ["--scheduler", cluster.scheduler_address], work / "cache-batch")
             t_batch += time.perf_counter() - t0 - t_batch  # the cluster's start-up counts
     else:
+        if args.workers is not None:
+            batch_args += ["--workers", str(args.workers)]
         t_batch = _torsionfit(batch_args, work / "cache-batch")
     rows = json.loads((work / "batch" / "batch.json").read_text())["units"]
     emcee_units = [r["unit"] for r in rows if r["sampler"] == "emcee"]
@@ -137,8 +144,10 @@ def main(argv=None) -> int:
         f"- work: MAP (4 starts × 3 noise passes) + Laplace for all {args.units} units; the full emcee posterior "
         f"(to convergence, max 20 000 steps) for {len(emcee_units)} of them ({', '.join(emcee_units)}), chosen by the seed",
         f"- batch: `torsionfit batch --posterior-sample {k} --group-size {args.group_size}`"
-        + (f" on a local Dask cluster of {args.workers} worker processes × 1 thread (`--scheduler`; the cluster's "
-           "start-up timed with it)" if args.workers > 1 else ", one process")
+        + (f" on a local Dask cluster of {args.dask_workers} worker processes × 1 thread (`--scheduler`; the "
+           "cluster's start-up timed with it)" if args.dask_workers else
+           f" `--workers {args.workers}`" if args.workers is not None else
+           f" (default `--workers`: {usable_cpus()} worker processes, one per usable CPU, one XLA thread each)")
         + ", empty compilation cache at start (imports, compilation, every unit's fit.json and posterior.nc "
           "included; no figures)",
         f"- loop: a fresh `torsionfit fit --sampler laplace` process per unit, timed for {len(t_loop)} units (the "

@@ -56,19 +56,19 @@ def _wrap(stages, module, attr, name):
 
 
 def _instrument(stages):
-    from torsionfit.batch import _batch, _group, _unit
+    from torsionfit.batch import _group, _unit
     from torsionfit.report import _pipeline
 
     _wrap(stages, _unit, "load_campaign", "load campaign")
     _wrap(stages, _unit, "prepare_fit", "prepare (decimate, build problem)")
-    _wrap(stages, _group, "fit_map_batch", "MAP + Laplace parts (vmapped)")
+    _wrap(stages, _group, "fit_map_batch", "MAP + Laplace (fit_map_batch)")
     _wrap(stages, _pipeline, "_values_over_draws", "parameter values of metric draws")
     _wrap(stages, _pipeline, "derived_metrics_for", "derived metrics: set-up")
     _wrap(stages, _pipeline, "_residuals", "RMSE residuals")
     _wrap(stages, _unit, "write_fit", "write fit.json")
     _wrap(stages, _unit, "write_row", "write row")
     _wrap(stages, _unit, "finish_fit", "finish_fit (all after MAP)")
-    _wrap(stages, _batch, "group_by_shape", "group by shape")
+    _wrap(stages, _group, "group_by_shape", "group by shape")
     from torsionfit.report._derived import DerivedMetrics
 
     over = DerivedMetrics.over_draws

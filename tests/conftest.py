@@ -14,6 +14,9 @@ os.environ["TORSIONFIT_CACHE_DIR"] = "off"
 # an idle machine: 558 s of CPU, 6.3 min, with one thread; 656 s with XLA's default threads, in
 # a run that other jobs joined halfway). Must be set before JAX starts; a user's XLA_FLAGS win.
 os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
+# One BLAS thread, as the commands use (torsionfit/_threads.py): OpenBLAS's spinning threads
+# take the cores from XLA. Set before NumPy loads; inherited by the CLI and notebook subprocesses.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 #: the shared data folder next to the repository (real measured data, never copied in)
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"

@@ -337,9 +337,12 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     from ._cache import enable_compilation_cache
 
+    from ._threads import single_blas_thread
+
     enable_compilation_cache()  # TORSIONFIT_CACHE_DIR chooses the folder, =off switches it off
     try:
-        return args.func(args)
+        with single_blas_thread():  # spinning BLAS threads would take the cores from XLA
+            return args.func(args)
     except InputError as err:
         print(f"torsionfit {args.command}: error: {err}", file=sys.stderr)
         return EXIT_INPUT_ERROR

@@ -30,7 +30,13 @@ def local_map(fn, items: list):
 
 def _start_worker(cache_dir: str | None, xla_flags: str | None) -> None:
     """In a fresh worker process, before any JAX computation: the parent's compilation cache
-    (so a shape compiled once on this machine is read from disk) and the XLA threads."""
+    (so a shape compiled once on this machine is read from disk), the XLA threads and one BLAS
+    thread (as torsionfit/_threads.py: two processes' spinning BLAS threads doubled the
+    batch's time)."""
+    from threadpoolctl import threadpool_limits
+
+    os.environ["OPENBLAS_NUM_THREADS"] = "1"  # for the BLAS libraries loaded later (SciPy's)
+    threadpool_limits(limits=1, user_api="blas")  # and those loaded already (NumPy's), for good
     if xla_flags is not None:
         os.environ["XLA_FLAGS"] = xla_flags
     if cache_dir:
