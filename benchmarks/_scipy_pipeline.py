@@ -43,6 +43,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from torsionfit.fit._denoise import denoise_torque
+from torsionfit.fit._map import same_optimum
 from torsionfit.fit._prior import build_priors
 from torsionfit.fit._problem import AR1_MIN_SAMPLES, NOISE_PRIOR_SD, RHO_PRIOR_SD, _hat_basis, _knot_indices
 from torsionfit.io import HysteresisRun
@@ -404,8 +405,8 @@ def laplace_covariance(problem: NumpyProblem, u) -> np.ndarray:
 
 def fit_map(problem: NumpyProblem, *, n_starts: int = 4, seed: int = 0, max_nfev: int = 300,
             noise_passes: int = 3, tol: float = 1e-8) -> MapResult:
-    """fit_map with scipy's MINPACK Levenberg–Marquardt; the same starts, passes and Laplace
-    covariance as torsionfit's."""
+    """fit_map with scipy's MINPACK Levenberg–Marquardt; the same starts, passes (later passes
+    shared by starts at one optimum) and Laplace covariance as torsionfit's."""
     rng = np.random.default_rng(seed)
     n = problem.n_nonlinear
     starts = [problem.prior_mean.copy()]
@@ -413,33 +414,40 @@ def fit_map(problem: NumpyProblem, *, n_starts: int = 4, seed: int = 0, max_nfev
         starts.append(problem.prior_mean + 0.7 * problem.prior_sd * rng.standard_normal(n))
     iid = np.array([problem.noise_prior_mean] + ([-30.0] if problem.ar1 else []))
     n_fev = n_jev = 0
-    best, records = None, []
-    for start in starts:
-        u_phys, u_noise = start.copy(), iid.copy()
-        ok, message = True, ""
-        for _ in range(noise_passes):
-            cache = {}
 
-            def fun(x, u_noise=u_noise, cache=cache):
-                r = problem.lm_residuals(x, u_noise)
-                cache["x"], cache["r"] = x.copy(), r
-                return r
+    def one_pass(u_phys, u_noise):
+        nonlocal n_fev, n_jev
+        cache = {}
 
-            def jac(x, u_noise=u_noise, cache=cache):
-                r0 = cache["r"] if "x" in cache and np.array_equal(cache["x"], x) else problem.lm_residuals(x, u_noise)
-                return _fd_jacobian(problem, x, u_noise, r0=r0)
+        def fun(x):
+            r = problem.lm_residuals(x, u_noise)
+            cache["x"], cache["r"] = x.copy(), r
+            return r
 
-            with np.errstate(all="ignore"):
-                sol = least_squares(fun, u_phys, jac=jac, method="lm", x_scale="jac",
-                                    ftol=tol, xtol=tol, gtol=tol, max_nfev=max_nfev)
-            n_fev += sol.nfev
-            n_jev += sol.njev or 0
-            u_phys = sol.x
-            ok = bool(sol.status > 0)
-            message = sol.message
-            u_noise = _noise_update(problem, np.concatenate([u_phys, u_noise]))
+        def jac(x):
+            r0 = cache["r"] if "x" in cache and np.array_equal(cache["x"], x) else problem.lm_residuals(x, u_noise)
+            return _fd_jacobian(problem, x, u_noise, r0=r0)
+
+        with np.errstate(all="ignore"):
+            sol = least_squares(fun, u_phys, jac=jac, method="lm", x_scale="jac",
+                                ftol=tol, xtol=tol, gtol=tol, max_nfev=max_nfev)
+        n_fev += sol.nfev
+        n_jev += sol.njev or 0
+        return sol.x, _noise_update(problem, np.concatenate([sol.x, u_noise])), bool(sol.status > 0), sol.message
+
+    # as torsionfit's fit_map: starts whose first pass meets at one optimum share the later passes
+    firsts = [one_pass(start.copy(), iid.copy()) for start in starts]
+    rep = same_optimum([f[0] for f in firsts])
+    finals = {}
+    for j in sorted(set(rep)):
+        u_phys, u_noise, ok, message = firsts[j]
+        for _ in range(noise_passes - 1):
+            u_phys, u_noise, ok, message = one_pass(u_phys, u_noise)
         u = np.concatenate([u_phys, u_noise])
-        ld = problem.log_density(u)
+        finals[j] = (u, problem.log_density(u), ok, message)
+    best, records = None, []
+    for j in rep:
+        u, ld, ok, message = finals[j]
         records.append((ld, message))
         if np.isfinite(ld) and (best is None or ld > best[1]):
             best = (u, ld, ok, message)

@@ -141,7 +141,7 @@ def main(argv=None) -> int:
         *[f"- {key}: {value}" for key, value in m.items()],
         f"- data: SYNTHETIC, {args.units} units of `benchmarks/benches/full_fit_10k.toml` (one five-step loop, "
         f"10 001 samples each), noise seeds 1–{args.units}; every unit fitted with seed 0",
-        f"- work: MAP (4 starts × 3 noise passes) + Laplace for all {args.units} units; the full emcee posterior "
+        f"- work: MAP (4 starts, 3 noise passes; the later passes shared by starts that met) + Laplace for all {args.units} units; the full emcee posterior "
         f"(to convergence, max 20 000 steps) for {len(emcee_units)} of them ({', '.join(emcee_units)}), chosen by the seed",
         f"- batch: `torsionfit batch --posterior-sample {k} --group-size {args.group_size}`"
         + (f" on a local Dask cluster of {args.dask_workers} worker processes × 1 thread (`--scheduler`; the "
