@@ -173,9 +173,9 @@ def test_packets_keep_emcee_units_apart_and_give_every_worker_work(tmp_path):
     tasks = [UnitTask(f"u{i}", tmp_path / f"u{i}.toml", tmp_path / f"o{i}") for i in range(7)]
     options = BatchOptions(posterior_units=frozenset({"u1", "u4"}), group_size=2)
     sizes = lambda work: [[t.unit for t in p] for p in work]  # noqa: E731
-    assert sizes(packets(tasks, options)) == [["u0", "u2"], ["u3", "u5"], ["u6"], ["u1", "u4"]]
-    assert sizes(packets(tasks, replace(options, group_size=16), workers=2)) == [["u0", "u2", "u3"], ["u5", "u6"],
-                                                                               ["u1"], ["u4"]]
+    assert sizes(packets(tasks, options)) == [["u1", "u4"], ["u0", "u2"], ["u3", "u5"], ["u6"]]
+    assert sizes(packets(tasks, replace(options, group_size=16), workers=2)) == [["u1"], ["u4"], ["u0", "u2", "u3"],
+                                                                               ["u5", "u6"]]
     assert packets([], options, workers=2) == []
 
 

@@ -10,7 +10,7 @@ from ..accept import EXIT_CODE, batch_exit_code, find_campaigns, write_batch_tab
 from ..io._manifest import MANIFEST_NAME
 from ._executor import executor
 from ._group import fit_group
-from ._options import BatchOptions
+from ._options import EMCEE, BatchOptions
 from ._unit import ERROR, UnitTask, stored_row
 
 TABLE_NAME = "batch"
@@ -33,11 +33,12 @@ def unit_tasks(folder, out_dir) -> list[UnitTask]:
 
 def packets(tasks: list[UnitTask], options: BatchOptions, workers: int = 1) -> list[list[UnitTask]]:
     """The units in packets of consecutive units, one packet per call of ``fit_group``: the emcee
-    units apart from the others (a packet's emcee units are sampled together), at most
+    units apart from the others and first (a packet's emcee units are sampled together), at most
     ``options.group_size`` per packet, and small enough that ``workers`` processes all get
     work. Sizes within a kind differ by at most one."""
     out = []
-    for sampler in dict.fromkeys(options.sampler_of(t.unit) for t in tasks):
+    # the emcee packets first: the longest tasks first keep the workers busy to the end
+    for sampler in sorted(set(options.sampler_of(t.unit) for t in tasks), key=lambda s: s != EMCEE):
         kind = [t for t in tasks if options.sampler_of(t.unit) == sampler]
         n = max(-(-len(kind) // options.group_size), min(workers, len(kind)))
         size, extra = divmod(len(kind), n)
