@@ -177,6 +177,8 @@ def test_packets_keep_emcee_units_apart_and_give_every_worker_work(tmp_path):
     assert sizes(packets(tasks, replace(options, group_size=16), workers=2)) == [["u1"], ["u4"], ["u0", "u2", "u3"],
                                                                                ["u5", "u6"]]
     assert packets([], options, workers=2) == []
+    many = [UnitTask(f"u{i:02d}", tmp_path / "m.toml", tmp_path / "o") for i in range(48)]
+    assert [len(p) for p in packets(many, BatchOptions(group_size=16), workers=2)] == [12] * 4  # not 16, 16, 16
 
 
 @pytest.mark.parametrize("extra, message", [(("--workers", "0"), "--workers ≥ 1"),

@@ -34,13 +34,15 @@ def unit_tasks(folder, out_dir) -> list[UnitTask]:
 def packets(tasks: list[UnitTask], options: BatchOptions, workers: int = 1) -> list[list[UnitTask]]:
     """The units in packets of consecutive units, one packet per call of ``fit_group``: the emcee
     units apart from the others and first (a packet's emcee units are sampled together), at most
-    ``options.group_size`` per packet, and small enough that ``workers`` processes all get
-    work. Sizes within a kind differ by at most one."""
+    ``options.group_size`` per packet, and as many packets of a kind as a multiple of
+    ``workers`` (when there are units enough), so that the workers get equal shares. Sizes
+    within a kind differ by at most one."""
     out = []
     # the emcee packets first: the longest tasks first keep the workers busy to the end
     for sampler in sorted(set(options.sampler_of(t.unit) for t in tasks), key=lambda s: s != EMCEE):
         kind = [t for t in tasks if options.sampler_of(t.unit) == sampler]
-        n = max(-(-len(kind) // options.group_size), min(workers, len(kind)))
+        n = -(-len(kind) // options.group_size)
+        n = min(-(-n // workers) * workers, len(kind))  # a multiple of the workers: they finish together
         size, extra = divmod(len(kind), n)
         start = 0
         for i in range(n):
