@@ -1,7 +1,8 @@
-"""Where one unit's time goes in ``torsionfit batch`` (Laplace sampler): SYNTHETIC 10 001-sample
-units of ``benches/full_fit_10k.toml``; a first group compiles, a second group of the same shape
-is timed warm, stage by stage, with the XLA compilations counted per stage (a stage that
-compiles in the warm group compiles per unit, not per shape).
+"""Where one unit's time goes in ``torsionfit batch`` (Laplace sampler, one process, one BLAS thread
+as the commands): SYNTHETIC 10 001-sample units of ``benches/full_fit_10k.toml``; a first group
+compiles, a second group of the same shape is timed warm, stage by stage, with the XLA
+compilations counted per stage (a stage that compiles in the warm group compiles per unit, not
+per shape).
 
     .venv/bin/python benchmarks/profile_batch_unit.py [--units 3] [--group-size 3]
 """
@@ -81,6 +82,13 @@ def _instrument(stages):
 
 
 def main(argv=None) -> int:
+    from torsionfit._threads import single_blas_thread
+
+    with single_blas_thread():  # as the commands run
+        return _main(argv)
+
+
+def _main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--units", type=int, default=3, help="units in the timed (warm) group")
     args = parser.parse_args(argv)
