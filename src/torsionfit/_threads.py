@@ -16,18 +16,29 @@ from threadpoolctl import threadpool_limits
 _ENV = "OPENBLAS_NUM_THREADS"
 
 
-@contextmanager
-def single_blas_thread():
-    """One BLAS thread inside the block: the BLAS libraries loaded already are limited
+def one_blas_thread():
+    """Limit NumPy's BLAS to one thread from now on: the BLAS libraries loaded already are limited
     (threadpoolctl) and those loaded later (SciPy's own OpenBLAS, imported by ArviZ) read
-    ``OPENBLAS_NUM_THREADS=1`` when they load; both are restored after the block."""
+    ``OPENBLAS_NUM_THREADS=1`` when they load. Returns a function that restores both."""
     before = os.environ.get(_ENV)
     os.environ[_ENV] = "1"
-    try:
-        with threadpool_limits(limits=1, user_api="blas"):
-            yield
-    finally:
+    limiter = threadpool_limits(limits=1, user_api="blas")
+
+    def restore():
+        limiter.restore_original_limits()
         if before is None:
             os.environ.pop(_ENV, None)
         else:
             os.environ[_ENV] = before
+
+    return restore
+
+
+@contextmanager
+def single_blas_thread():
+    """:func:`one_blas_thread` inside the block, the previous limits and environment after it."""
+    restore = one_blas_thread()
+    try:
+        yield
+    finally:
+        restore()

@@ -70,12 +70,13 @@ def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler
         else:
             rows[task.unit] = row
     say(f"{len(tasks)} units: {len(rows)} already done, {len(todo)} to do")
-    work = packets(todo, options, workers if scheduler is None else 1)
-    workers = min(workers, len(work)) if scheduler is None else workers
+    workers = 1 if scheduler else workers  # a Dask cluster's workers are its own
+    work = packets(todo, options, workers)
+    workers = max(1, min(workers, len(work)))  # no idle processes
     where = f"on the Dask cluster at {scheduler}" if scheduler else \
         f"in {workers} worker processes" if workers > 1 else "in this process"
     say(f"{len(work)} packets of up to {options.group_size} units, {where}")
-    with executor(scheduler, workers=max(workers, 1)) as run_map:
+    with executor(scheduler, workers=workers) as run_map:
         results = run_map(partial(fit_group, options=options), work)
         for n, (packet, packet_rows) in enumerate(zip(work, results), start=1):
             rows.update({t.unit: r for t, r in zip(packet, packet_rows)})

@@ -33,10 +33,9 @@ def _start_worker(cache_dir: str | None, xla_flags: str | None) -> None:
     (so a shape compiled once on this machine is read from disk), the XLA threads and one BLAS
     thread (as torsionfit/_threads.py: two processes' spinning BLAS threads doubled the
     batch's time)."""
-    from threadpoolctl import threadpool_limits
+    from .._threads import one_blas_thread
 
-    os.environ["OPENBLAS_NUM_THREADS"] = "1"  # for the BLAS libraries loaded later (SciPy's)
-    threadpool_limits(limits=1, user_api="blas")  # and those loaded already (NumPy's), for good
+    one_blas_thread()  # for the worker's life
     if xla_flags is not None:
         os.environ["XLA_FLAGS"] = xla_flags
     if cache_dir:

@@ -85,7 +85,7 @@ def fit_map_batch(problems: list, run_names: list, seeds: list[int], *, n_starts
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
     n_units = len(problems)
     starts = jnp.asarray(np.stack([map_starts(p, n_starts, s) for p, s in zip(problems, seeds)]))
-    noise0 = jnp.stack([jnp.broadcast_to(iid_noise(p), (n_starts,) + iid_noise(p).shape) for p in problems])
+    noise0 = jnp.stack([jnp.tile(iid_noise(p), (n_starts, 1)) for p in problems])  # (units, starts, n_noise)
     first = _passes(stacked, starts, noise0, solver, max_steps, 1)
     # the later passes for each unit's distinct first-pass optima only (as fit_map); lanes padded
     # by repeating a unit's first representative so every unit has the same number of lanes
