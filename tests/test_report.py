@@ -72,6 +72,38 @@ def test_derived_metrics_compile_once_for_any_loading_rate_and_draw_count(noisy_
            for i in range(3)]
     np.testing.assert_allclose(first, np.stack(one), rtol=1e-12)
 
+@pytest.mark.parametrize("effects, reads", [({}, False), ({"kinematic_error": [1, 2]}, True),
+                                             ({"thermal_drift": True, "torque_offset": True}, False)])
+def test_metrics_read_the_linear_profile_only_when_they_need_it(noisy_bench, effects, reads):
+    """The draws' values skip the linear profile (a model run over the data per draw) unless
+    the metrics read a linear parameter (kinematic harmonics); the metrics are the same either
+    way, since the metrics' runs carry no offsets or drift."""
+    import jax
+
+    from torsionfit.report._pipeline import _values_over_draws, prepare_fit
+
+    sim = simulate(load_bench(noisy_bench), seed=4)
+    options = FitOptions(sampler="laplace", effects=effects)
+    campaign, model, problem = prepare_fit(sim.campaign, options)
+    derived = derived_metrics_for(campaign, model)
+    assert derived.reads_linear() is reads
+    u0 = problem.prior_mean
+    rng = np.random.default_rng(0)
+    u = np.concatenate([u0 + 0.01 * rng.standard_normal((3, u0.size)), np.zeros((3, problem.dim - u0.size))], axis=1)
+    full = _values_over_draws(problem, u, True)
+    values = _values_over_draws(problem, u, reads)
+    assert ("kin_cos" in values) is reads
+    assert ("angle_offset" in values) is reads  # run offsets only come with the profile
+    if reads:  # the harmonics' profile matters: zeroing them changes K_d
+        zeroed = {**full, "kin_cos": 0 * full["kin_cos"], "kin_sin": 0 * full["kin_sin"]}
+        assert not np.allclose(derived.over_draws(zeroed), derived.over_draws(full), rtol=1e-9)
+    np.testing.assert_allclose(derived.over_draws(values), derived.over_draws(full), rtol=1e-12)
+    if reads:
+        assert jax.tree.structure(values) == jax.tree.structure(full)
+    else:
+        assert set(values) == {p.name for p in problem.physics}
+
+
 def test_fit_json_has_the_contract(laplace_fit):
     sim, fit = laplace_fit
     doc = json.loads(json.dumps(fit_json(fit)))  # JSON-serialisable

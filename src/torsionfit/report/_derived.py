@@ -51,24 +51,23 @@ def _protocol(rated, rate) -> _Protocol:
     return _Protocol(jnp.asarray(t), jnp.asarray(tau), 2 * n // 5, 3 * n // 5, 4 * n // 5, n)
 
 
-def _single_run_params(params: dict, kind: str) -> dict:
-    """Parameters for a one-run model: per-run entries replaced by a run at rest."""
-    out = dict(params)
-    out["angle_offset"] = jnp.zeros(1)
-    out["friction_start"] = jnp.zeros(1)  # the protocol starts at rest
-    if "te_offset" in out:
-        out["te_offset"] = jnp.zeros(1)
-    if "drift" in out:
-        out["drift"] = jnp.zeros(1)
-    if "torque_offset" in out:
-        out["torque_offset"] = jnp.asarray(0.0)
-    if kind == "hysteresis":
-        out.pop("te_offset", None)
-        for k in ("kin_cos", "kin_sin", "viscous_friction", "speed_compliance_1", "speed_compliance_2"):
-            out.pop(k, None)
-    else:
-        out.pop("angle_offset", None)
-        out.pop("friction_start", None)
+#: linear parameters the metrics read: the reducer's kinematic error is a property of the unit;
+#: the others (per-run offsets, drift) belong to one measured run and are zero in the metrics' runs
+METRIC_LINEAR = ("kin_cos", "kin_sin")
+
+
+def _single_run_params(model: m.CampaignModel, params: dict) -> dict:
+    """Parameters of ``model`` (a one-run model) from a campaign's: per-run entries replaced by
+    a run at rest (no offset, no drift, friction state 0, no torque-sensor offset). Needs of
+    ``params`` only the physics and the ``METRIC_LINEAR`` entries."""
+    out = {}
+    for p in model.parameters():
+        if p.name == "friction_start" or (p.linear and p.name not in METRIC_LINEAR):
+            out[p.name] = jnp.zeros(p.size)  # the protocol starts at rest; no run offsets
+        elif p.name == "torque_offset":
+            out[p.name] = jnp.asarray(0.0)
+        else:
+            out[p.name] = params[p.name]
     return out
 
 
@@ -89,7 +88,7 @@ class DerivedMetrics(eqx.Module):
     def evaluate(self, values: dict) -> jnp.ndarray:
         """All metrics (in ``specs`` order, their units) for one parameter set (SI)."""
         p = self.protocol
-        params = _single_run_params(values, "hysteresis")
+        params = _single_run_params(self.hyst_model, values)
         c = self.hyst_model.components(params, [m.hysteresis_input(p.time_s, p.torque_Nm)])[0]
         theta, tau = c["total"], p.torque_Nm
         # full branches between −T_r and +T_r: down = steps 2+3 (reversed so τ rises), up = 4+5
@@ -130,9 +129,15 @@ class DerivedMetrics(eqx.Module):
                 out.append(jnp.abs(inp.torque_Nm) / jnp.abs(jnp.mean(te[1:])) / NM_PER_ARCMIN)  # revolution mean
         return jnp.stack([jnp.asarray(v, float) for v in out])
 
+    def reads_linear(self) -> bool:
+        """Whether the metrics read linear parameters (the kinematic harmonics of TE runs): only
+        then do the draws' values need the linear profile (a model run over the data per draw)."""
+        models = [self.hyst_model] + ([self.te_model] if self.te_model is not None else [])
+        return any(p.name in METRIC_LINEAR for mod in models for p in mod.parameters())
+
     def _te_twist(self, values: dict, inp: m.TEInput) -> jnp.ndarray:
         """Model TE (rad) of one TE condition against the unloaded, friction-free zero."""
-        tc = self.te_model.components(_single_run_params(values, "transmission_error"), [inp])[0]
+        tc = self.te_model.components(_single_run_params(self.te_model, values), [inp])[0]
         return tc["total"] - tc["offset"]
 
     def _kernel(self) -> "DerivedMetrics":

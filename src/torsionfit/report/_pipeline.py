@@ -58,7 +58,9 @@ class CampaignFit:
     tree: object = None  # ArviZ DataTree (emcee) or None
     sample_result: object = None
     #: SI parameter values (name → (draws, ...)) of the draws behind ``metric_draws``, row by
-    #: row: further model quantities of the same draws (e.g. K_d at any condition) use these
+    #: row: further model quantities of the same draws (e.g. K_d at any condition) use these.
+    #: The physics and the linear parameters the metrics read (kinematic harmonics), not the
+    #: per-run offsets and drift (nuisance of one measured run; the metrics' runs have none)
     metric_values: dict | None = None
 
     @property
@@ -84,8 +86,12 @@ def summarise(draws: np.ndarray) -> dict:
 
 
 @eqx.filter_jit
-def _values_over_draws(problem, u_batch):
-    return jax.vmap(problem.full_values)(u_batch)
+def _values_over_draws(problem, u_batch, linear: bool):
+    """SI values of the draws: physics only, or with the linear parameters' profile β̂(u) (a
+    model run over the data per draw, the larger part of a Laplace unit's metric cost)."""
+    if linear:
+        return jax.vmap(problem.full_values)(u_batch)
+    return jax.vmap(lambda u: problem.physics_values(u[:problem.n_nonlinear]))(u_batch)
 
 
 @eqx.filter_jit
@@ -167,8 +173,9 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     diagnostics["map_message"] = map_result.message
 
     pick = rng.choice(len(draws_u), size=min(options.metric_draws, len(draws_u)), replace=False)
-    values = map_chunks(lambda u: _values_over_draws(problem, u), draws_u[pick])
     derived = derived_metrics_for(campaign, model, options.lost_motion_pct)
+    linear = derived.reads_linear()
+    values = map_chunks(lambda u: _values_over_draws(problem, u, linear), draws_u[pick])
     metric_draws = np.asarray(derived.over_draws(values))
     bad = ~np.all(np.isfinite(metric_draws), axis=1)
     if bad.any():
