@@ -4,6 +4,7 @@ decimated ×4 to keep the fits short) with bad units among them; vmapped MAP aga
 
 import hashlib
 import json
+import os
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -167,6 +168,18 @@ def test_unreachable_scheduler_is_one_line_input_error():
     with pytest.raises(InputError, match="cannot reach a Dask scheduler"):
         with executor("tcp://127.0.0.1:9", timeout_s=2):
             pass
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="CPU affinity is Linux-only")
+def test_worker_processes_are_pinned_one_cpu_each():
+    """JAX sizes its thread pool by the CPUs a process may use: each worker gets one, round robin."""
+    from torsionfit.batch._executor import worker_cpus
+
+    usable = sorted(os.sched_getaffinity(0))
+    assert worker_cpus(2 * len(usable) + 1) == usable * 2 + usable[:1]
+    with executor(workers=2) as run:
+        seen = list(run(os.sched_getaffinity, [0] * 8))
+    assert all(len(cpus) == 1 and cpus <= set(usable) for cpus in seen)
 
 
 def test_packets_keep_emcee_units_apart_and_give_every_worker_work(tmp_path):
