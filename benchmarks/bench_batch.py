@@ -147,7 +147,7 @@ def main(argv=None) -> int:
         + (f" on a local Dask cluster of {args.dask_workers} worker processes × 1 thread (`--scheduler`; the "
            "cluster's start-up timed with it)" if args.dask_workers else
            f" `--workers {args.workers}`" if args.workers is not None else
-           f" (default `--workers`: {usable_cpus()} worker processes, one per usable CPU, one XLA thread each)")
+           f" (default `--workers`: {usable_cpus()} worker processes, one per usable CPU, each pinned to one CPU)")
         + ", empty compilation cache at start (imports, compilation, every unit's fit.json and posterior.nc "
           "included; no figures)",
         f"- loop: a fresh `torsionfit fit --sampler laplace` process per unit, timed for {len(t_loop)} units (the "
