@@ -182,6 +182,16 @@ def test_worker_processes_are_pinned_one_cpu_each():
     assert all(len(cpus) == 1 and cpus <= set(usable) for cpus in seen)
 
 
+@pytest.mark.parametrize("backend, expected", [("cpu", None), ("gpu", 1), ("tpu", 1)])
+def test_default_workers_one_per_cpu_or_one_per_accelerator(monkeypatch, backend, expected):
+    import jax
+
+    from torsionfit.batch import default_workers, usable_cpus
+
+    monkeypatch.setattr(jax, "default_backend", lambda: backend)
+    assert default_workers() == (expected or usable_cpus())
+
+
 def test_packets_keep_emcee_units_apart_and_give_every_worker_work(tmp_path):
     tasks = [UnitTask(f"u{i}", tmp_path / f"u{i}.toml", tmp_path / f"o{i}") for i in range(7)]
     options = BatchOptions(posterior_units=frozenset({"u1", "u4"}), group_size=2)

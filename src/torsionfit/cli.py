@@ -140,7 +140,7 @@ def _cmd_batch(args) -> int:
     import hashlib
 
     from .accept import load_spec
-    from .batch import BatchOptions, exit_code, posterior_sample, run_batch, unit_tasks, usable_cpus
+    from .batch import BatchOptions, default_workers, exit_code, posterior_sample, run_batch, unit_tasks
     from .report import FitOptions
 
     spec = load_spec(args.spec) if args.spec else None
@@ -156,7 +156,7 @@ def _cmd_batch(args) -> int:
         posterior_units=posterior_sample(units, args.posterior_sample, args.seed),
         figures=args.figures, group_size=args.group_size, seed=args.seed)
     say = _progress("batch")
-    workers = args.workers if args.workers is not None else usable_cpus()
+    workers = args.workers if args.workers is not None else 1 if args.scheduler else default_workers()
     rows = run_batch(args.folder, args.output, options, scheduler=args.scheduler, force=args.force, progress=say,
                      workers=workers)
     counts = {}
@@ -313,7 +313,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--group-size", type=int, default=16, metavar="G",
                    help="units per packet (one task of a worker; its units of one shape fitted together), at most (default 16)")
     p.add_argument("--workers", type=int, default=None, metavar="W",
-                   help="worker processes on this machine (default: one per usable CPU; 1 = this process)")
+                   help="worker processes on this machine (default: one per usable CPU, each pinned to it; 1 with a GPU; 1 = this process)")
     p.add_argument("--figures", action="store_true", help="also write each unit's figures")
     p.add_argument("--force", action="store_true", help="redo units already done")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
