@@ -164,6 +164,36 @@ def test_dask_local_cluster_equals_local_run(first_run, line, spec_file, tmp_pat
                 assert a[k] == pytest.approx(b[k], rel=1e-9) if isinstance(a[k], float) else a[k] == b[k], (a["unit"], k)
 
 
+def crash_on_unit_named_crash(packet, options):
+    """``fit_group``, but the worker process dies (as on a segfault or the OOM killer: no
+    exception) on a unit named "a-crash". Module level: the worker processes import it."""
+    from torsionfit.batch import fit_group
+
+    if any(t.unit == "a-crash" for t in packet):
+        os._exit(3)
+    return fit_group(packet, options)
+
+
+def test_a_worker_process_that_dies_costs_only_its_unit(line, tmp_path, monkeypatch):
+    """The pool breaks; the units it may have been fitting are redone one at a time in a process
+    of their own, the one that kills it again gets an error row, the others are done."""
+    from torsionfit.batch import _batch, run_batch
+
+    root = tmp_path / "in"
+    for name in ("a-crash", "unit-a"):
+        shutil.copytree(line / "unit-a", root / name)
+    monkeypatch.setattr(_batch, "fit_group", crash_on_unit_named_crash)
+    said = []
+    options = BatchOptions(fit=FitOptions(sampler="laplace", progress=False, decimate=DECIMATE), group_size=2)
+    rows = run_batch(root, tmp_path / "out", options, workers=2, progress=said.append)
+    status = {r["unit"]: (r["status"], r["reason"]) for r in rows}
+    assert status["a-crash"][0] == "error" and "worker process fitting this unit died" in status["a-crash"][1]
+    assert status["unit-a"][0] == "done"
+    assert any("a worker process died" in text for text in said)
+    table = json.loads((tmp_path / "out" / "batch.json").read_text())["units"]
+    assert [r["unit"] for r in table] == ["a-crash", "unit-a"]
+
+
 def test_unreachable_scheduler_is_one_line_input_error():
     with pytest.raises(InputError, match="cannot reach a Dask scheduler"):
         with executor("tcp://127.0.0.1:9", timeout_s=2):

@@ -2,6 +2,7 @@
 shape in a packet fitted together (here, in worker processes or on Dask workers), one row per
 unit in ``OUT/batch.csv`` and ``OUT/batch.json``."""
 
+from concurrent.futures.process import BrokenProcessPool
 from functools import partial
 from pathlib import Path
 
@@ -11,7 +12,7 @@ from ..io._manifest import MANIFEST_NAME
 from ._executor import executor
 from ._group import fit_group
 from ._options import EMCEE, BatchOptions
-from ._unit import ERROR, UnitTask, stored_row
+from ._unit import ERROR, UnitTask, clear_row, error_row, stored_row, write_row, written_row
 
 TABLE_NAME = "batch"
 COLUMNS = ("unit", "status", "decision", "p_conform", "sampler", "converged", "map_converged", "reason", "shape",
@@ -71,20 +72,60 @@ def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler
             rows[task.unit] = row
     say(f"{len(tasks)} units: {len(rows)} already done, {len(todo)} to do")
     workers = 1 if scheduler else workers  # a Dask cluster's workers are its own
-    work = packets(todo, options, workers)
-    workers = max(1, min(workers, len(work)))  # no idle processes
-    where = f"on the Dask cluster at {scheduler}" if scheduler else \
-        f"in {workers} worker processes" if workers > 1 else "in this process"
-    say(f"{len(work)} packets of up to {options.group_size} units, {where}")
-    with executor(scheduler, workers=workers) as run_map:
-        results = run_map(partial(fit_group, options=options), work)
-        for n, (packet, packet_rows) in enumerate(zip(work, results), start=1):
-            rows.update({t.unit: r for t, r in zip(packet, packet_rows)})
-            failed = sum(r["status"] == ERROR for r in packet_rows)
-            say(f"packet {n}/{len(work)}: {len(packet)} units done" + (f", {failed} in error" if failed else ""))
+    for task in todo:
+        clear_row(task)  # a row file found after a worker process died is then this run's
+    fit = partial(fit_group, options=options)
+    pending = todo
+    while pending:
+        work = packets(pending, options, workers)
+        n_workers = max(1, min(workers, len(work)))  # no idle processes
+        where = f"on the Dask cluster at {scheduler}" if scheduler else \
+            f"in {n_workers} worker processes" if n_workers > 1 else "in this process"
+        say(f"{len(work)} packets of up to {options.group_size} units, {where}")
+        lost = _dispatch(fit, work, rows, say, scheduler=scheduler, workers=n_workers)
+        if not lost:
+            break
+        # FIFO dispatch: the packets that were running are among the first unfinished ones
+        suspects = [t for packet in lost[:n_workers + 1] for t in packet]
+        say(f"a worker process died: the unit(s) it may have been fitting ({len(suspects)}) are redone one at a "
+            "time in a process of their own")
+        while suspects:
+            again = _dispatch(fit, [[t] for t in suspects], rows, say, workers=1, processes=True)
+            if not again:
+                break
+            culprit = again[0][0]
+            rows[culprit.unit] = error_row(culprit, RuntimeError(
+                "the worker process fitting this unit died (a crash or out of memory, not an exception)"), options)
+            write_row(culprit, rows[culprit.unit], options)
+            suspects = [packet[0] for packet in again[1:]]
+        pending = [t for packet in lost[n_workers + 1:] for t in packet]
     ordered = [rows[t.unit] for t in tasks]
     write_batch_table(ordered, out_dir, name=TABLE_NAME, columns=tuple(c for c in COLUMNS if any(c in r for r in ordered)))
     return ordered
+
+
+def _dispatch(fit, work: list[list[UnitTask]], rows: dict, say, scheduler=None, workers=1, processes=None) -> list:
+    """Run the packets; their rows into ``rows``. Returns [] or, when a worker process died, the
+    packets whose rows are not all in (those written before it died are taken from the units'
+    row files)."""
+    done = 0
+    try:
+        with executor(scheduler, workers=workers, processes=processes) as run_map:
+            for n, (packet, packet_rows) in enumerate(zip(work, run_map(fit, work)), start=1):
+                rows.update({t.unit: r for t, r in zip(packet, packet_rows)})
+                failed = sum(r["status"] == ERROR for r in packet_rows)
+                say(f"packet {n}/{len(work)}: {len(packet)} units done" + (f", {failed} in error" if failed else ""))
+                done = n
+    except BrokenProcessPool:
+        lost = []
+        for packet in work[done:]:
+            found = {t.unit: written_row(t) for t in packet}
+            if all(found.values()):
+                rows.update(found)
+            else:
+                lost.append(packet)
+        return lost
+    return []
 
 
 def exit_code(rows: list[dict], with_spec: bool) -> int:

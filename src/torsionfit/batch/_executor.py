@@ -66,14 +66,15 @@ def _start_worker(cache_dir: str | None, xla_flags: str | None, cpu_queue=None) 
 
 
 @contextmanager
-def executor(scheduler: str | None = None, timeout_s: float = 30.0, workers: int = 1):
+def executor(scheduler: str | None = None, timeout_s: float = 30.0, workers: int = 1, processes: bool | None = None):
     """A map over ``items``: here (``workers`` 1), in ``workers`` fresh processes of this
-    machine, or on the Dask scheduler at ``scheduler`` (e.g. ``tcp://10.0.0.5:8786``);
-    InputError when Dask is missing or the scheduler cannot be reached."""
+    machine (also one, with ``processes``), or on the Dask scheduler at ``scheduler`` (e.g.
+    ``tcp://10.0.0.5:8786``); InputError when Dask is missing or the scheduler cannot be
+    reached. A worker process that dies raises ``BrokenProcessPool`` from the map."""
     if scheduler is None:
         if workers < 1:
             raise InputError(f"--workers must be at least 1, got {workers}")
-        if workers == 1:
+        if workers == 1 and not processes:
             yield local_map
             return
         # spawn, not fork: a forked JAX runtime (threads, XLA state) is not safe to use

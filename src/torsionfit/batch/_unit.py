@@ -87,6 +87,21 @@ def write_row(task: UnitTask, row: dict, options: BatchOptions) -> None:
     os.replace(tmp, out / ROW_FILE)
 
 
+def clear_row(task: UnitTask) -> None:
+    """Remove the unit's row file (before the unit is done again: a row file found after a worker
+    process died is then this run's)."""
+    (Path(task.out_dir) / ROW_FILE).unlink(missing_ok=True)
+
+
+def written_row(task: UnitTask) -> dict | None:
+    """The row in the unit's row file, whatever its status; None without one."""
+    try:
+        stored = json.loads((Path(task.out_dir) / ROW_FILE).read_text())
+    except (OSError, ValueError):
+        return None
+    return stored.get("row") if isinstance(stored, dict) else None
+
+
 def stored_row(task: UnitTask, options: BatchOptions) -> dict | None:
     """The stored row of a complete unit done with these settings, else None."""
     out = Path(task.out_dir)
