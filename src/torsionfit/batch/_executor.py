@@ -4,6 +4,7 @@ list and yields the results in order, each as soon as it (and those before it) a
 
 import multiprocessing
 import os
+import queue
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 
@@ -55,7 +56,10 @@ def _start_worker(cache_dir: str | None, xla_flags: str | None, cpu_queue=None) 
     from .._threads import one_blas_thread
 
     if cpu_queue is not None:
-        os.sched_setaffinity(0, {cpu_queue.get()})
+        try:
+            os.sched_setaffinity(0, {cpu_queue.get(timeout=5.0)})
+        except queue.Empty:  # more processes than CPUs handed out: never wait for one
+            pass
     one_blas_thread()  # for the worker's life
     if xla_flags is not None:
         os.environ["XLA_FLAGS"] = xla_flags
