@@ -93,23 +93,25 @@ def clear_row(task: UnitTask) -> None:
     (Path(task.out_dir) / ROW_FILE).unlink(missing_ok=True)
 
 
-def written_row(task: UnitTask) -> dict | None:
-    """The row in the unit's row file, whatever its status; None without one."""
+def _row_file(task: UnitTask) -> dict:
+    """The unit's row file ({"settings", "row"}); {} when missing or unreadable."""
     try:
         stored = json.loads((Path(task.out_dir) / ROW_FILE).read_text())
     except (OSError, ValueError):
-        return None
-    return stored.get("row") if isinstance(stored, dict) else None
+        return {}
+    return stored if isinstance(stored, dict) else {}
+
+
+def written_row(task: UnitTask) -> dict | None:
+    """The row in the unit's row file, whatever its status; None without one."""
+    return _row_file(task).get("row")
 
 
 def stored_row(task: UnitTask, options: BatchOptions) -> dict | None:
     """The stored row of a complete unit done with these settings, else None."""
     out = Path(task.out_dir)
-    try:
-        stored = json.loads((out / ROW_FILE).read_text())
-    except (OSError, ValueError):
-        return None
-    row = stored.get("row", {}) if isinstance(stored, dict) else {}
+    stored = _row_file(task)
+    row = stored.get("row", {})
     needed = ["fit.json"] + (["accept.json"] if options.spec is not None else [])
     if options.sampler_of(task.unit) == "emcee":
         needed.append("posterior.nc")
