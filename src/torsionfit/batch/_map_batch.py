@@ -27,20 +27,15 @@ Lanes = Literal["auto", "serial", "vmap"]
 
 
 @eqx.filter_jit
-def _passes(problems, u_phys, u_noise, solver, max_steps: int, n_passes: int):
-    """``n_passes`` noise passes per lane: ``problems`` stacked per unit, ``u_phys`` / ``u_noise``
-    (units, lanes, ·). Returns (u_phys, u_noise, solver result, log density) per unit × lane."""
-
-    def one_lane(problem, u_phys, u_noise):
-        result = ld = None
-        for _ in range(n_passes):
-            u_phys, u_noise, result, ld = noise_pass(problem, u_phys, u_noise, solver, max_steps)
-        return u_phys, u_noise, result, ld
+def _pass(problems, u_phys, u_noise, solver, max_steps: int):
+    """One noise pass per lane: ``problems`` stacked per unit, ``u_phys`` / ``u_noise``
+    (units, lanes, ·). Returns (u_phys, u_noise, solver result, log density) per unit × lane.
+    Every pass of ``fit_map_batch`` calls this one program (same lane count): one compilation."""
 
     def one_unit(problem, u_phys, u_noise):
-        return jax.vmap(one_lane, in_axes=(None, 0, 0))(problem, u_phys, u_noise)
+        return jax.vmap(noise_pass, in_axes=(None, 0, 0, None, None))(problem, u_phys, u_noise, solver, max_steps)
 
-    return eqx.filter_vmap(one_unit)(problems, u_phys, u_noise)
+    return eqx.filter_vmap(one_unit, in_axes=(eqx.if_array(0), 0, 0))(problems, u_phys, u_noise)
 
 
 #: per unit at u (units, dim): physics Jacobian, (σ_r, ρ_r) and every parameter value
@@ -86,17 +81,17 @@ def fit_map_batch(problems: list, run_names: list, seeds: list[int], *, n_starts
     n_units = len(problems)
     starts = jnp.asarray(np.stack([map_starts(p, n_starts, s) for p, s in zip(problems, seeds)]))
     noise0 = jnp.stack([jnp.tile(iid_noise(p), (n_starts, 1)) for p in problems])  # (units, starts, n_noise)
-    first = _passes(stacked, starts, noise0, solver, max_steps, 1)
-    # the later passes for each unit's distinct first-pass optima only (as fit_map); lanes padded
-    # by repeating a unit's first representative so every unit has the same number of lanes
+    first = _pass(stacked, starts, noise0, solver, max_steps)
+    # the later passes for each unit's distinct first-pass optima only (as fit_map); every unit
+    # keeps n_starts lanes, the spare ones repeating its first representative (same inputs, same
+    # steps, so no extra work on an accelerator), so that all passes share one compiled program
     reps = [same_optimum(np.asarray(first[0][i])) for i in range(n_units)]
     distinct = [sorted(set(r)) for r in reps]
-    width = max(len(d) for d in distinct)
-    lane_of = np.array([d + [d[0]] * (width - len(d)) for d in distinct])
+    lane_of = np.array([d + [d[0]] * (n_starts - len(d)) for d in distinct])
     pick = lambda x: jnp.stack([x[i][lane_of[i]] for i in range(n_units)])  # noqa: E731
     later = jax.tree.map(pick, first)
-    if noise_passes > 1:
-        later = _passes(stacked, later[0], later[1], solver, max_steps, noise_passes - 1)
+    for _ in range(noise_passes - 1):
+        later = _pass(stacked, later[0], later[1], solver, max_steps)
     u_phys, u_noise, results, lds = later
     u_all = np.concatenate([np.asarray(u_phys), np.asarray(u_noise)], axis=-1)
     lds = np.asarray(lds, dtype=float)
