@@ -82,6 +82,15 @@ def test_components_sum_to_total():
             assert np.all(np.isfinite(comps[k]))
 
 
+def test_predict_is_the_components_total():
+    """predict skips the parts that cancel in the total (elastic and geometric at the applied
+    torque): the same angle to rounding, for every run kind and every effect switched on."""
+    model, inputs, params = full_model_and_data()
+    for pred, comps in zip(model.predict(params, inputs), model.components(params, inputs)):
+        scale = np.max(np.abs(comps["total"]))
+        np.testing.assert_allclose(pred, comps["total"], rtol=0, atol=1e-13 * scale)
+
+
 @pytest.mark.parametrize("name", [
     "k1", "k2", "k3", "t1", "t2_minus_t1", "compliance_asymmetry", "friction_torque",
     "dahl_torque", "gap", "gap_torque", "creep_stiffness", "creep_time", "viscous_friction",

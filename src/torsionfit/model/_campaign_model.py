@@ -87,33 +87,42 @@ class CampaignModel(eqx.Module):
         return out
 
     # --- one run -------------------------------------------------------------------------
-    def hysteresis_components(self, params, data: HysteresisInput, run_index: int, hyst_index: int):
-        """Components (rad) of one hysteresis run, plus ``total``, ``mesh_torque`` and ``friction_state``."""
+    def _hysteresis_drive(self, params, data: HysteresisInput, run_index: int, hyst_index: int):
+        """(applied torque, mesh torque, friction torque, creep, drift, offset) of one hysteresis run."""
         torque = data.torque_Nm
         if self.torque_offset:
             torque = torque - params["torque_offset"]
         z0 = jnp.atleast_1d(params["friction_start"])[hyst_index] if self.free_friction_start else None
         friction_torque = self.friction.friction_torque(params, torque, self.scan, z0)
         mesh = torque - friction_torque
-
-        def spring_and_gap(t):
-            return self.compliance(params, t) + self.backlash(params, t)
-
-        elastic = self.compliance(params, torque)
-        geometric = self.backlash(params, torque)
-        friction = spring_and_gap(mesh) - elastic - geometric
         zeros = jnp.zeros_like(torque)
         creep = zeros if self.creep is None else self.creep.twist(params, data.time_s, mesh, self.scan)
         drift = zeros
         if self.drift:
             drift = jnp.atleast_1d(params["drift"])[run_index] * (data.time_s - data.time_s[0])
         offset = zeros + jnp.atleast_1d(params["angle_offset"])[hyst_index]
+        return torque, mesh, friction_torque, creep, drift, offset
+
+    def hysteresis_components(self, params, data: HysteresisInput, run_index: int, hyst_index: int):
+        """Components (rad) of one hysteresis run, plus ``total``, ``mesh_torque`` and ``friction_state``."""
+        torque, mesh, friction_torque, creep, drift, offset = self._hysteresis_drive(params, data, run_index, hyst_index)
+        elastic = self.compliance(params, torque)
+        geometric = self.backlash(params, torque)
+        friction = self.compliance(params, mesh) + self.backlash(params, mesh) - elastic - geometric
+        zeros = jnp.zeros_like(torque)
         return self._finish(
             dict(elastic=elastic, friction=friction, geometric=geometric, creep=creep,
                  kinematic=zeros, drift=drift, offset=offset),
             mesh_torque=mesh,
             friction_state=friction_torque / params["friction_torque"],
         )
+
+    def hysteresis_total(self, params, data: HysteresisInput, run_index: int, hyst_index: int):
+        """Measured output twist (rad) of one hysteresis run: the components' ``total`` without
+        the parts that cancel in it (elastic + friction + geometric = spring and gap at the mesh
+        torque) — what a fit evaluates, one compliance and one backlash pass fewer."""
+        _, mesh, _, creep, drift, offset = self._hysteresis_drive(params, data, run_index, hyst_index)
+        return self.compliance(params, mesh) + self.backlash(params, mesh) + creep + drift + offset
 
     def te_components(self, params, data: TEInput, run_index: int):
         """Components (rad) of one TE run over its output angles, plus ``total`` and ``mesh_torque``."""
@@ -169,5 +178,15 @@ class CampaignModel(eqx.Module):
         return out
 
     def predict(self, params, inputs) -> list:
-        """Predicted measured angle (rad) per run: output twist or TE."""
-        return [c["total"] for c in self.components(params, inputs)]
+        """Predicted measured angle (rad) per run: output twist or TE (the components' ``total``
+        to rounding)."""
+        if len(inputs) != len(self.run_kinds):
+            raise ValueError(f"model has {len(self.run_kinds)} runs, got {len(inputs)} inputs")
+        out, h = [], 0
+        for i, (kind, data) in enumerate(zip(self.run_kinds, inputs)):
+            if kind == "hysteresis":
+                out.append(self.hysteresis_total(params, data, i, h))
+                h += 1
+            else:
+                out.append(self.te_components(params, data, i)["total"])
+        return out
