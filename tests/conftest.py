@@ -2,13 +2,13 @@
 
 import gzip
 import os
+import shutil
+import tempfile
+import uuid
 from pathlib import Path
 
 import pytest
 
-# The CLI keeps JAX's compiled programs on disk (torsionfit/_cache.py); tests stay hermetic and
-# leave the user's cache alone. tests/test_cache.py exercises the cache in a temporary folder.
-os.environ["TORSIONFIT_CACHE_DIR"] = "off"
 # One XLA thread per test process: the suite runs two pytest-xdist workers on two cores, and
 # XLA's own intra-op threads on top of them oversubscribe the cores (test_diagnose.py alone on
 # an idle machine: 558 s of CPU, 6.3 min, with one thread; 656 s with XLA's default threads, in
@@ -17,6 +17,39 @@ os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_
 # One BLAS thread, as the commands use (torsionfit/_threads.py): OpenBLAS's spinning threads
 # take the cores from XLA. Set before NumPy loads; inherited by the CLI and notebook subprocesses.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+# The CLI keeps JAX's compiled programs on disk (torsionfit/_cache.py). The tests leave the
+# user's cache alone but share one fresh cache per test run: both pytest-xdist workers, the
+# command-line calls, the batch's worker processes and the notebook kernels compile the same
+# model shapes again and again, and most of the suite's time is XLA compiling. The folder starts
+# empty (nothing from an earlier run) and is removed when the run ends. tests/test_cache.py
+# exercises the cache in folders of its own. TORSIONFIT_TEST_CACHE=off: no cache at all.
+# The first process of the run (pytest-xdist's controller, or the only one) names the folder;
+# the workers and every subprocess inherit the name from the environment.
+from torsionfit._cache import MIN_COMPILE_TIME_S, enable_compilation_cache  # noqa: E402 (after the flags)
+
+_RUN_CACHE = "TORSIONFIT_TEST_RUN_CACHE"
+_NAMED_HERE = _RUN_CACHE not in os.environ
+if _NAMED_HERE:
+    os.environ[_RUN_CACHE] = str(Path(tempfile.gettempdir()) / f"torsionfit-test-cache-{uuid.uuid4().hex}")
+TEST_CACHE_DIR = Path(os.environ[_RUN_CACHE])
+if os.environ.get("TORSIONFIT_TEST_CACHE", "").lower() == "off":
+    os.environ["TORSIONFIT_CACHE_DIR"] = "off"
+else:
+    # the commands' switch, and JAX's own for library calls in this process, the workers and
+    # the notebook kernels (JAX reads its options from the environment when it starts)
+    os.environ["TORSIONFIT_CACHE_DIR"] = str(TEST_CACHE_DIR)
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = str(TEST_CACHE_DIR)
+    os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = str(MIN_COMPILE_TIME_S)
+    os.environ["JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES"] = "-1"
+    enable_compilation_cache(TEST_CACHE_DIR)  # JAX may have been imported before this file
+
+
+def pytest_unconfigure(config):
+    # the process that named the folder ends last (xdist's controller after its workers)
+    if _NAMED_HERE:
+        shutil.rmtree(TEST_CACHE_DIR, ignore_errors=True)
+
 
 #: the shared data folder next to the repository (real measured data, never copied in)
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"

@@ -127,7 +127,7 @@ def test_paper_command_end_to_end_quick(tmp_path):
     out = tmp_path / "paper"
     # single-threaded XLA: on a shared 2-core machine the threaded runtime was several times slower
     env = {**os.environ, "XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
-           "TORSIONFIT_CACHE_DIR": "off", "MPLBACKEND": "Agg"}
+           "MPLBACKEND": "Agg"}
     proc = subprocess.run([sys.executable, "-m", "torsionfit.cli", "paper", "-o", str(out), "--quick", "--quiet"],
                           env=env, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
