@@ -88,3 +88,46 @@ def test_batcher_waits_only_for_running_units(units):
     lp = batcher.evaluate(0, chunk)
     assert lp.shape == (16,) and np.all(np.isfinite(lp)) and batcher.calls == 1
     assert batcher._stacked[0] == (0,)  # one lane: the units that left are not computed on
+
+
+def test_a_failing_shared_call_fails_only_the_unit_whose_own_call_fails(units, monkeypatch):
+    """The shared units × walkers call raises (as for one unit's bad chunk); each unit is then
+    evaluated alone: the good ones get their values, only the bad one its error."""
+    import threading
+
+    from torsionfit.batch import _sampler
+
+    problems, starts = zip(*units)
+    bad = problems[1]
+
+    def shared(*args):
+        raise RuntimeError("the shared call failed")
+
+    alone = _sampler.batch_log_density
+
+    def per_unit(problem, chunk):
+        if problem is bad:
+            raise ValueError("unit 1's own call failed")
+        return alone(problem, chunk)
+
+    monkeypatch.setattr(_sampler, "units_log_density", shared)
+    monkeypatch.setattr(_sampler, "batch_log_density", per_unit)
+    batcher = UnitBatcher(list(problems))
+    chunks = [np.tile(s.u, (16, 1)) for s in starts]
+    out = [None] * 3
+
+    def ask(i):
+        try:
+            out[i] = batcher.evaluate(i, chunks[i])
+        except Exception as err:  # noqa: BLE001
+            out[i] = err
+
+    threads = [threading.Thread(target=ask, args=(i,)) for i in range(3)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=120)
+    assert isinstance(out[1], ValueError) and "unit 1" in str(out[1])
+    for i in (0, 2):
+        np.testing.assert_allclose(out[i], np.asarray(alone(problems[i], chunks[i])), rtol=1e-12)
+    assert batcher.calls == 1

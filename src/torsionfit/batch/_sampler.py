@@ -4,7 +4,8 @@ are gathered into one call of a jitted vmap(units)∘vmap(walkers) log-density.
 
 Each sampler hands its (walkers/2, dim) chunk to a shared :class:`UnitBatcher` and waits; when
 every still-running unit has handed one in, the last one to arrive makes the call for all and
-each gets its slice. A unit that has stopped (converged, at ``max_steps`` or failed) leaves the
+each gets its slice. Should that shared call fail, every waiting unit's chunk is evaluated by
+itself, so that only a unit whose own call fails gets the error. A unit that has stopped (converged, at ``max_steps`` or failed) leaves the
 batcher. The call stacks the running units only, padded with copies up to a power of two (or
 the group's size): a stopped unit's lane is not computed on, yet a group of K compiles at most
 ⌈log₂ K⌉ + 1 shapes. (Padding to the full group instead cost 1.25–1.57× the time of one unit
@@ -21,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..sample import run_sampler
-from ..sample._emcee import _log_density_one
+from ..sample._emcee import _log_density_one, batch_log_density
 from ._shape import stack_problems
 
 #: log-density of (units, n, dim) → (units, n) for a stacked problem; compiled once per shape,
@@ -73,12 +74,20 @@ class UnitBatcher:
             lp = np.asarray(units_log_density(self._stack(lanes), jnp.asarray(np.stack([self.waiting[i] for i in lanes]))),
                             dtype=float)
             results = {i: lp[k] for k, i in enumerate(units)}
-        except Exception as err:  # noqa: BLE001 — every waiting unit gets it, none hangs
-            results = {i: err for i in units}
+        except Exception:  # noqa: BLE001 — the shared call failed: each unit alone, so only a
+            results = {i: self._alone(i) for i in units}  # unit whose own call fails gets an error
         self.calls += 1
         self.waiting.clear()
         self.done.update(results)
         self._cond.notify_all()
+
+    def _alone(self, unit: int):
+        """Unit's waiting chunk evaluated by itself (as ``run_sampler`` alone would), or the
+        exception that raises."""
+        try:
+            return np.asarray(batch_log_density(self.problems[unit], jnp.asarray(self.waiting[unit])), dtype=float)
+        except Exception as err:  # noqa: BLE001 — that unit's result
+            return err
 
     def _stack(self, lanes: tuple):
         """The stacked problem of ``lanes`` (unit indices), restacked only when they change."""
