@@ -288,12 +288,43 @@ def per_call_costs(tf, npy):
     return out
 
 
+def disk_cache_child(bench_path: Path, cache_dir: Path) -> None:
+    """In a new process: the torsionfit pipeline with JAX's disk cache in ``cache_dir`` (as the
+    command line keeps it); prints its times as one JSON line."""
+    import json
+
+    from torsionfit._cache import enable_compilation_cache
+
+    enable_compilation_cache(cache_dir)
+    campaign = simulate(load_bench(bench_path)).campaign
+    clock = CompileClock()
+    tf = run_torsionfit(campaign, clock, "disk")
+    print(json.dumps({"total": tf["times"]["total"], "compile": sum(tf["compile"].values()),
+                      "map": tf["times"]["map"], "sample": tf["times"]["sample"]}))
+
+
+def run_with_disk_cache(quick: bool) -> dict:
+    """Two new processes on one fresh disk cache: the first compiles and fills it, the second
+    reads it — the second campaign of a shape with the command line. Times of the second."""
+    import json
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="torsionfit-bench-cache-") as folder:
+        cmd = [sys.executable, str(Path(__file__).resolve()), "--disk-cache-child", folder] + (["--quick"] if quick else [])
+        runs = []
+        for _ in range(2):
+            proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
+            runs.append(json.loads(proc.stdout.strip().splitlines()[-1]))
+    return {"first": runs[0], "second": runs[1]}
+
+
 # --- report ---------------------------------------------------------------------------------
 def f(x, spec=".1f"):
     return "—" if x is None else format(x, spec)
 
 
-def build_report(args, info, bench_path, n_samples, tf, warm, npy, costs, loads, wall):
+def build_report(args, info, bench_path, n_samples, tf, warm, npy, costs, loads, wall, disk=None):
     r_tf, r_np = tf["result"], npy["result"]
     n_phys = tf["problem"].n_model
     names = list(tf["map"].names)
@@ -339,6 +370,8 @@ def build_report(args, info, bench_path, n_samples, tf, warm, npy, costs, loads,
          f"{compile_tf:.1f} [{tf['compile']['build']:.1f} / {tf['compile']['map']:.1f} / {tf['compile']['sample']:.1f}]",
          "0", ""),
         ("end to end, warm rerun in the same process (s)", f(warm_total), "—", ""),
+        ("end to end, new process, compiled programs from the disk cache (s)",
+         f(disk["second"]["total"]) if disk else "—", "—", x(np_to_target, disk["second"]["total"]) if disk else ""),
         ("emcee steps (converged?)", f"{steps_tf} ({'yes' if r_tf.converged else 'no'})",
          f"{steps_np} ({'yes' if r_np.converged else 'no'})", ""),
         ("τ_max (steps) at the last check", f(float(np.max(r_tf.tau))), f(float(np.max(r_np.tau))), ""),
@@ -373,6 +406,11 @@ def build_report(args, info, bench_path, n_samples, tf, warm, npy, costs, loads,
         f"- On CPU time (less sensitive to other processes' load): {ratio_cpu:.2f}×.",
         f"- Without compilation (warm rerun): {ratio_warm:.2f}×." if warm else
         "- Warm rerun skipped (--no-warm).",
+        (f"- In a new process whose programs come from JAX's disk cache, filled by an earlier process of "
+         f"the same shape (the command line's next campaign of this shape): {disk['second']['total']:.1f} s end to "
+         f"end, of which {disk['second']['compile']:.1f} s JAX compile events (tracing, lowering and reading "
+         f"the cache), {np_to_target / disk['second']['total']:.2f}× (the process that filled the cache: "
+         f"{disk['first']['total']:.1f} s).") if disk else "- Disk-cache runs skipped (--no-disk-cache).",
         f"- Sampling alone (emcee time to equal ESS): {sampling_ratio:.2f}×; MAP alone: "
         f"torsionfit {t_tf['map']:.1f} s vs SciPy {t_np['map']:.1f} s.",
         f"- torsionfit wall time including compilation: {t_tf['total']:.1f} s on "
@@ -477,6 +515,9 @@ def main(argv=None):
                          "the run stops at a τ check and its time to equal ESS is extrapolated "
                          "(default 360, 120 with --quick)")
     ap.add_argument("--no-warm", action="store_true", help="skip the warm torsionfit rerun")
+    ap.add_argument("--no-disk-cache", action="store_true",
+                    help="skip the two torsionfit runs in new processes with JAX's disk cache")
+    ap.add_argument("--disk-cache-child", type=Path, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     bench_path = HERE / "benches" / ("full_fit_2k.toml" if args.quick else "full_fit_10k.toml")
     budget = args.numpy_budget if args.numpy_budget is not None else (120.0 if args.quick else 360.0)
@@ -484,6 +525,8 @@ def main(argv=None):
     if output is None and not args.quick:
         output = HERE / "results" / "full_fit.md"
 
+    if args.disk_cache_child is not None:
+        return disk_cache_child(bench_path, args.disk_cache_child)
     info = machine(scipy=scipy.__version__, emcee=emcee.__version__, arviz_stats=arviz_stats.__version__)
     for k, v in info.items():
         say(f"{k}: {v}")
@@ -505,11 +548,16 @@ def main(argv=None):
         say("torsionfit (warm rerun) …")
         warm = run_torsionfit(campaign, clock, "warm")
         say(f"  {warm['times']}, compile {warm['compile']}")
+    disk = None
+    if not args.no_disk_cache:
+        say("torsionfit in new processes with the disk cache (the first fills it, the second is timed) …")
+        disk = run_with_disk_cache(args.quick)
+        say(f"  {disk}")
     costs = per_call_costs(tf, npy)
     wall = time.perf_counter() - start
     loads.append(os.getloadavg()[0])
 
-    text = build_report(args, info, bench_path, n_samples, tf, warm, npy, costs, loads, wall)
+    text = build_report(args, info, bench_path, n_samples, tf, warm, npy, costs, loads, wall, disk)
     print(text)
     if output is not None:
         output.parent.mkdir(parents=True, exist_ok=True)
