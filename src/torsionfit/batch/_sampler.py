@@ -7,11 +7,12 @@ every still-running unit has handed one in, the last one to arrive makes the cal
 each gets its slice. Should that shared call fail, every waiting unit's chunk is evaluated by
 itself, so that only a unit whose own call fails gets the error. A unit that has stopped
 (converged, at ``max_steps`` or failed) leaves the batcher. The call stacks the running units
-only, padded with copies up to a power of two (or the group's size): a stopped unit's lane is not computed on, yet a group of K compiles at most
-⌈log₂ K⌉ + 1 shapes. (Padding to the full group instead cost 1.25–1.57× the time of one unit
-after another when half the units stopped halfway: a lane costs the same whether used or not.)
-Every unit follows exactly the chain it would alone: the same proposals from its own random
-state, the same log-density values (to rounding), the same stopping rule.
+only, padded with copies up to a power of two (or the group's size): a stopped unit's lane is
+not computed on, yet a group of K compiles at most ⌈log₂ K⌉ + 1 shapes. (Padding to the full
+group instead cost 1.25–1.57× the time of one unit after another when half the units stopped
+halfway: a lane costs the same whether used or not.) Every unit follows exactly the chain it
+would alone: the same proposals from its own random state, the same log-density values (to
+rounding), the same stopping rule.
 """
 
 import math
