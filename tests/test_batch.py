@@ -194,6 +194,40 @@ def test_a_worker_process_that_dies_costs_only_its_unit(line, tmp_path, monkeypa
     assert [r["unit"] for r in table] == ["a-crash", "unit-a"]
 
 
+def crash_on_every_unit(packet, options):
+    """``fit_group`` of a worker process that cannot work: it dies on every unit."""
+    os._exit(3)
+
+
+def test_worker_processes_that_never_work_end_the_batch_with_one_line(line, tmp_path, monkeypatch):
+    """Every unit kills its process (as when a worker cannot start): after STARTUP_DEATHS units
+    alone, with no unit ever back, the batch stops with one line instead of trying every unit."""
+    from torsionfit.batch import WorkerProcessError, _batch, run_batch
+
+    root = tmp_path / "in"
+    for name in ("u1", "u2", "u3", "u4"):
+        shutil.copytree(line / "unit-a", root / name)
+    monkeypatch.setattr(_batch, "fit_group", crash_on_every_unit)
+    options = BatchOptions(fit=FitOptions(sampler="laplace", progress=False, decimate=DECIMATE), group_size=1)
+    with pytest.raises(WorkerProcessError, match="3 units in a row each killed a worker process") as err:
+        run_batch(root, tmp_path / "out", options, workers=2)
+    assert "\n" not in str(err.value) and "--workers 1" in str(err.value)
+    dead = [u for u in ("u1", "u2", "u3", "u4") if (tmp_path / "out" / u / ROW_FILE).exists()]
+    assert len(dead) == _batch.STARTUP_DEATHS  # the culprits' error rows are written
+
+
+def test_batch_command_prints_the_worker_process_error_in_one_line(line, tmp_path, monkeypatch, capsys):
+    import torsionfit.batch as batch
+
+    def never_works(*args, **kwargs):
+        raise batch.WorkerProcessError("3 units in a row each killed a worker process of their own")
+
+    monkeypatch.setattr(batch, "run_batch", never_works)
+    assert main(_argv(line, tmp_path / "out", workers=2)) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "torsionfit batch: error: 3 units in a row each killed a worker process of their own"
+
+
 def test_unreachable_scheduler_is_one_line_input_error():
     with pytest.raises(InputError, match="cannot reach a Dask scheduler"):
         with executor("tcp://127.0.0.1:9", timeout_s=2):

@@ -140,7 +140,8 @@ def _cmd_batch(args) -> int:
     import hashlib
 
     from .accept import load_spec
-    from .batch import BatchOptions, default_workers, exit_code, posterior_sample, run_batch, unit_tasks
+    from .batch import (BatchOptions, WorkerProcessError, default_workers, exit_code, posterior_sample, run_batch,
+                        unit_tasks)
     from .report import FitOptions
 
     spec = load_spec(args.spec) if args.spec else None
@@ -157,8 +158,12 @@ def _cmd_batch(args) -> int:
         figures=args.figures, group_size=args.group_size, seed=args.seed)
     say = _progress("batch")
     workers = args.workers if args.workers is not None else 1 if args.scheduler else default_workers()
-    rows = run_batch(args.folder, args.output, options, scheduler=args.scheduler, force=args.force, progress=say,
-                     workers=workers)
+    try:
+        rows = run_batch(args.folder, args.output, options, scheduler=args.scheduler, force=args.force, progress=say,
+                         workers=workers)
+    except WorkerProcessError as err:
+        print(f"torsionfit batch: error: {err}", file=sys.stderr)
+        return 2
     counts = {}
     for row in rows:
         key = row.get("decision") or ("error" if row["status"] == "error" else

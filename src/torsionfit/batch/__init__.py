@@ -4,8 +4,8 @@ MAP one unit after another on a CPU, ``vmap`` over units × starts on an acceler
 emcee units' ensembles advanced together), here, in worker processes or on a Dask cluster;
 one row per unit."""
 
-from ._batch import (COLUMNS as COLUMNS, exit_code as exit_code, packets as packets, run_batch as run_batch,
-                     unit_tasks as unit_tasks)
+from ._batch import (COLUMNS as COLUMNS, WorkerProcessError as WorkerProcessError, exit_code as exit_code,
+                     packets as packets, run_batch as run_batch, unit_tasks as unit_tasks)
 from ._executor import default_workers as default_workers, executor as executor, local_map as local_map, usable_cpus as usable_cpus
 from ._group import fit_group as fit_group
 from ._map_batch import fit_map_batch as fit_map_batch
