@@ -15,6 +15,8 @@ from ._options import EMCEE, BatchOptions
 from ._unit import ERROR, UnitTask, clear_row, error_row, stored_row, write_row, written_row
 
 TABLE_NAME = "batch"
+COLUMNS = ("unit", "status", "decision", "p_conform", "sampler", "converged", "map_converged", "reason", "shape",
+           "campaign", "label")
 #: units that each killed a process of their own, with no unit ever back from a worker process,
 #: before the batch concludes that its worker processes cannot work at all
 STARTUP_DEATHS = 3
@@ -23,8 +25,6 @@ STARTUP_DEATHS = 3
 class WorkerProcessError(RuntimeError):
     """The batch's worker processes die before any unit comes back from one (they cannot start,
     or every unit kills them); one line for the user."""
-COLUMNS = ("unit", "status", "decision", "p_conform", "sampler", "converged", "map_converged", "reason", "shape",
-           "campaign", "label")
 
 
 def unit_tasks(folder, out_dir) -> list[UnitTask]:
@@ -84,7 +84,7 @@ def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler
         clear_row(task)  # a row file found after a worker process died is then this run's
     fit = partial(fit_group, options=options)
     pending = todo
-    back = [False]  # has any unit come back from a worker process (rows returned or written)?
+    back = False  # has any unit come back from a worker process (rows returned or written)?
     culprits = 0
     while pending:
         work = packets(pending, options, workers)
@@ -92,7 +92,8 @@ def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler
         where = f"on the Dask cluster at {scheduler}" if scheduler else \
             f"in {n_workers} worker processes" if n_workers > 1 else "in this process"
         say(f"{len(work)} packets of up to {options.group_size} units, {where}")
-        lost = _dispatch(fit, work, rows, say, scheduler=scheduler, workers=n_workers, back=back)
+        lost, came = _dispatch(fit, work, rows, say, scheduler=scheduler, workers=n_workers)
+        back = back or came
         if not lost:
             break
         # FIFO dispatch: the packets that were running are among the first unfinished ones
@@ -100,7 +101,8 @@ def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler
         say(f"a worker process died: the unit(s) it may have been fitting ({len(suspects)}) are redone one at a "
             "time in a process of their own")
         while suspects:
-            again = _dispatch(fit, [[t] for t in suspects], rows, say, workers=1, processes=True, back=back)
+            again, came = _dispatch(fit, [[t] for t in suspects], rows, say, workers=1, processes=True)
+            back = back or came
             if not again:
                 break
             culprit = again[0][0]
@@ -108,7 +110,7 @@ def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler
                 "the worker process fitting this unit died (a crash or out of memory, not an exception)"), options)
             write_row(culprit, rows[culprit.unit], options)
             culprits += 1
-            if culprits >= STARTUP_DEATHS and not back[0]:
+            if culprits >= STARTUP_DEATHS and not back:
                 raise WorkerProcessError(
                     f"{culprits} units in a row each killed a worker process of their own and no unit has come back "
                     "from one: the worker processes cannot work here (run with --workers 1 to see the error in this "
@@ -120,32 +122,30 @@ def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler
     return ordered
 
 
-def _dispatch(fit, work: list[list[UnitTask]], rows: dict, say, scheduler=None, workers=1, processes=None,
-              back=None) -> list:
-    """Run the packets; their rows into ``rows``. Returns [] or, when a worker process died, the
-    packets whose rows are not all in (those written before it died are taken from the units'
-    row files). ``back[0]`` becomes True once any unit's row has come back."""
-    back = [False] if back is None else back
+def _dispatch(fit, work: list[list[UnitTask]], rows: dict, say, scheduler=None, workers=1,
+              processes=None) -> tuple[list, bool]:
+    """Run the packets; their rows into ``rows``. Returns ([] or, when a worker process died, the
+    packets whose rows are not all in — those written before it died are taken from the units'
+    row files; whether any unit's row came back)."""
     done = 0
     try:
         with executor(scheduler, workers=workers, processes=processes) as run_map:
             for n, (packet, packet_rows) in enumerate(zip(work, run_map(fit, work)), start=1):
-                back[0] = True
                 rows.update({t.unit: r for t, r in zip(packet, packet_rows)})
                 failed = sum(r["status"] == ERROR for r in packet_rows)
                 say(f"packet {n}/{len(work)}: {len(packet)} units done" + (f", {failed} in error" if failed else ""))
                 done = n
     except BrokenProcessPool:
-        lost = []
+        lost, came = [], done > 0
         for packet in work[done:]:
             found = {t.unit: written_row(t) for t in packet}
-            back[0] = back[0] or any(found.values())
+            came = came or any(found.values())
             if all(found.values()):
                 rows.update(found)
             else:
                 lost.append(packet)
-        return lost
-    return []
+        return lost, came
+    return [], True
 
 
 def exit_code(rows: list[dict], with_spec: bool) -> int:

@@ -164,29 +164,27 @@ class CampaignModel(eqx.Module):
         return {**parts, "total": total, **extra}
 
     # --- the campaign --------------------------------------------------------------------
-    def components(self, params, inputs) -> list[dict]:
-        """Components of every run; ``inputs`` in campaign order (HysteresisInput / TEInput)."""
+    def _each_run(self, inputs, hysteresis, te) -> list:
+        """``hysteresis(data, run_index, hyst_index)`` / ``te(data, run_index)`` of every run;
+        ``inputs`` in campaign order (HysteresisInput / TEInput)."""
         if len(inputs) != len(self.run_kinds):
             raise ValueError(f"model has {len(self.run_kinds)} runs, got {len(inputs)} inputs")
         out, h = [], 0
         for i, (kind, data) in enumerate(zip(self.run_kinds, inputs)):
             if kind == "hysteresis":
-                out.append(self.hysteresis_components(params, data, i, h))
+                out.append(hysteresis(data, i, h))
                 h += 1
             else:
-                out.append(self.te_components(params, data, i))
+                out.append(te(data, i))
         return out
+
+    def components(self, params, inputs) -> list[dict]:
+        """Components of every run; ``inputs`` in campaign order (HysteresisInput / TEInput)."""
+        return self._each_run(inputs, lambda d, i, h: self.hysteresis_components(params, d, i, h),
+                              lambda d, i: self.te_components(params, d, i))
 
     def predict(self, params, inputs) -> list:
         """Predicted measured angle (rad) per run: output twist or TE (the components' ``total``
         to rounding)."""
-        if len(inputs) != len(self.run_kinds):
-            raise ValueError(f"model has {len(self.run_kinds)} runs, got {len(inputs)} inputs")
-        out, h = [], 0
-        for i, (kind, data) in enumerate(zip(self.run_kinds, inputs)):
-            if kind == "hysteresis":
-                out.append(self.hysteresis_total(params, data, i, h))
-                h += 1
-            else:
-                out.append(self.te_components(params, data, i)["total"])
-        return out
+        return self._each_run(inputs, lambda d, i, h: self.hysteresis_total(params, d, i, h),
+                              lambda d, i: self.te_components(params, d, i)["total"])
