@@ -39,8 +39,11 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import json  # noqa: E402
 import statistics  # noqa: E402
+import subprocess  # noqa: E402
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
 from collections import defaultdict  # noqa: E402
@@ -266,7 +269,8 @@ def per_call_costs(tf, npy):
     # compiles to a different layout): the same log-density with the recurrence replaced by an
     # element-wise stand-in x[n] = a[n]·x0 + b[n] (a wrong model, for timing only)
     with patched(tf_friction, "affine_scan", lambda a, b, x0, method="auto": a * x0 + b):
-        no_scan = eqx.filter_jit(eqx.filter_vmap(lambda p, u: p.log_density(u), in_axes=(None, 0)))
+        # a new jit of run_sampler's own per-walker log-density (its compiled program is cached)
+        no_scan = eqx.filter_jit(eqx.filter_vmap(tf_emcee._log_density_one, in_axes=(None, 0)))
         jax.block_until_ready(no_scan(problem, u_tf))  # traced (and compiled) with the stand-in
     # JAX and NumPy candidates in separate rounds: XLA's worker threads stay busy for a
     # moment after a call and would be charged to the NumPy call that follows
@@ -291,8 +295,6 @@ def per_call_costs(tf, npy):
 def disk_cache_child(bench_path: Path, cache_dir: Path) -> None:
     """In a new process: the torsionfit pipeline with JAX's disk cache in ``cache_dir`` (as the
     command line keeps it); prints its times as one JSON line."""
-    import json
-
     from torsionfit._cache import enable_compilation_cache
 
     enable_compilation_cache(cache_dir)
@@ -306,10 +308,6 @@ def disk_cache_child(bench_path: Path, cache_dir: Path) -> None:
 def run_with_disk_cache(quick: bool) -> dict:
     """Two new processes on one fresh disk cache: the first compiles and fills it, the second
     reads it — the second campaign of a shape with the command line. Times of the second."""
-    import json
-    import subprocess
-    import tempfile
-
     with tempfile.TemporaryDirectory(prefix="torsionfit-bench-cache-") as folder:
         cmd = [sys.executable, str(Path(__file__).resolve()), "--disk-cache-child", folder] + (["--quick"] if quick else [])
         runs = []
