@@ -416,6 +416,18 @@ def build_report(args, info, bench_path, n_samples, tf, warm, npy, costs, loads,
         f"**{'met' if goal_wall else 'not met'}**" + ("" if goal_wall else
                                                      f" ({t_tf['total'] / GOAL_WALL_S:.1f}× over)") + ".",
     ]
+    if warm:
+        # a bound, not a forecast: torsionfit's end to end can be no shorter than its emcee
+        # log-density calls, so even with compilation, building, the MAP and emcee's own work
+        # taking no time the ratio could not exceed this
+        calls_s = warm["logp_s"]
+        need = np_to_target / GOAL_RATIO
+        verdict.append(
+            f"- Ceiling with this log-density and these moves: if compilation, building, the MAP and emcee's own work took no "
+            f"time, torsionfit's end to end would be its emcee log-density calls alone ({calls_s:.1f} s in the "
+            f"warm rerun, {warm['logp_calls']} calls): at most {np_to_target / calls_s:.1f}× faster. For "
+            f"{GOAL_RATIO:g}× with nothing else costing, those calls would have to take {need:.1f} s in all, "
+            f"{calls_s / need:.1f}× faster than now.")
     if extrapolated:
         verdict.append(
             f"- The NumPy/SciPy emcee run {'was stopped by the time budget' if r_np.budget_hit else 'did not converge'} "
