@@ -311,18 +311,20 @@ def _design_matrices(model, inputs, physics, linear, prior_mean, y):
     """Per-run design matrix of the linear parameters (exact: they enter linearly)."""
     n_lin = int(sum(p.size for p in linear))
     if not n_lin:
-        return [jnp.zeros((len(v), 0)) for v in y]
+        return [jnp.asarray(np.zeros((len(v), 0))) for v in y]
+    # NumPy placeholders: every eager jnp call compiles a small program of its own
     shell = FitProblem(model, physics, linear, tuple(False for _ in y), None, inputs, y,
-                       [jnp.zeros(len(v)) for v in y], [jnp.zeros((len(v), 0)) for v in y],
-                       [jnp.zeros((len(v), 0)) for v in y], jnp.zeros(len(y)), prior_mean,
-                       jnp.ones_like(prior_mean), jnp.zeros(len(y)))
-    return [jnp.asarray(j) for j in _linear_jacobian(shell, shell.physics_values(prior_mean), n_lin)]
+                       [np.zeros(len(v)) for v in y], [np.zeros((len(v), 0)) for v in y],
+                       [np.zeros((len(v), 0)) for v in y], np.zeros(len(y)), prior_mean,
+                       np.ones_like(prior_mean), np.zeros(len(y)))
+    return [jnp.asarray(j) for j in _linear_jacobian(shell, prior_mean, n_lin)]
 
 
 @eqx.filter_jit
-def _linear_jacobian(shell, phys, n_lin: int):
-    """d prediction / d linear parameters per run (jitted: eagerly, every scan of the model
-    compiles anew on each call, a tenth of a second per campaign)."""
+def _linear_jacobian(shell, u_phys, n_lin: int):
+    """d prediction / d linear parameters per run at the physics ``u_phys`` (jitted: eagerly,
+    every scan of the model compiles anew on each call, a tenth of a second per campaign)."""
+    phys = shell.physics_values(u_phys)
 
     def lin_pred(beta):
         return shell.model.predict({**phys, **shell.linear_values(beta)}, shell.inputs)
@@ -354,8 +356,8 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
     physics = tuple(p for p in params if not p.linear)
     linear = tuple(p for p in params if p.linear)
     priors = build_priors(params, campaign)
-    prior_mean = jnp.asarray(np.concatenate([np.full(p.size, priors[p.name][0]) for p in physics]))
-    prior_sd = jnp.asarray(np.concatenate([np.full(p.size, priors[p.name][1]) for p in physics]))
+    prior_mean = np.concatenate([np.full(p.size, priors[p.name][0]) for p in physics])
+    prior_sd = np.concatenate([np.full(p.size, priors[p.name][1]) for p in physics])
     inputs, torque_var = model_inputs(campaign, noise.denoise_fraction, return_variance=True)
     y = [jnp.asarray(v) for v in observed(campaign)]
     floor = campaign.instrument.angle_floor_rad or 0.0
@@ -370,12 +372,12 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
             bases.append(jnp.asarray(_hat_basis(len(run), knots)))
             knot_sd.append(np.sqrt(np.maximum(var[knots], 1e-12)))
         else:
-            bases.append(jnp.zeros((len(run), 0)))
+            bases.append(jnp.asarray(np.zeros((len(run), 0))))
     if knot_sd:
-        prior_mean = jnp.concatenate([prior_mean, jnp.zeros(sum(len(k) for k in knot_sd))])
-        prior_sd = jnp.concatenate([prior_sd, jnp.asarray(np.concatenate(knot_sd))])
+        prior_mean = np.concatenate([prior_mean, np.zeros(sum(len(k) for k in knot_sd))])
+        prior_sd = np.concatenate([prior_sd, *knot_sd])
     return FitProblem(
         model=model, physics=physics, linear=linear, ar1=ar1, student_t_dof=noise.student_t_dof,
-        inputs=inputs, y=y, torque_var=[jnp.asarray(v) for v in torque_var], design=design, knot_basis=bases, floors=jnp.full(len(y), floor),
-        prior_mean=prior_mean, prior_sd=prior_sd, noise_prior_mean=jnp.asarray(np.log(1e-2 * ranges)),
+        inputs=inputs, y=y, torque_var=[jnp.asarray(v) for v in torque_var], design=design, knot_basis=bases, floors=jnp.asarray(np.full(len(y), floor)),
+        prior_mean=jnp.asarray(prior_mean), prior_sd=jnp.asarray(prior_sd), noise_prior_mean=jnp.asarray(np.log(1e-2 * ranges)),
     )
