@@ -3,7 +3,8 @@ over torque × speed, and where the worn unit still meets the requirement — as
 P(K_d ≥ K_req) from the acceptance module (``torsionfit.accept``), not a yes/no overlap."""
 
 import numpy as np
-from matplotlib.patches import Rectangle
+from matplotlib import colormaps
+from matplotlib.patches import Patch, Rectangle
 
 from .._posterior import kd_draws
 from ._style import figure, per_deg, save
@@ -26,12 +27,16 @@ def fig19_envelope(repro, out_dir):
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     ax = fig.add_subplot(1, 2, 2)
     fig.subplots_adjust(bottom=0.14, wspace=0.15)
+    handles = []
     for fit, cmap, label in ((repro.fit("paper-small"), "Blues", "P1 normal"), (repro.worn_fit(), "Reds", "P2 worn")):
         t, v, k = _median_surface(fit, env_worn.torque_Nm, env_worn.speed_rpm)
         ax3.plot_surface(t, v, k, cmap=cmap, alpha=0.7, lw=0)
-        ax3.text(t[-1, -1], v[-1, -1], k[-1, -1], label, fontsize=8)
+        # a legend, not text at a surface corner: there the label ran into the K_d tick labels
+        handles.append(Patch(color=colormaps[cmap](0.7), label=label))
     t, v = np.meshgrid(env_worn.torque_Nm, env_worn.speed_rpm)
     ax3.plot_surface(t, v, np.full_like(t, k_req), color="0.5", alpha=0.3, lw=0)
+    handles.append(Patch(color="0.5", alpha=0.3, label=f"K_req = {k_req:g} {env_worn.unit}"))
+    ax3.legend(handles=handles, loc="upper left", fontsize=7)
     ax3.set_xlabel("τ (N·m)", fontsize=8)
     ax3.set_ylabel("v (rpm)", fontsize=8)
     ax3.set_zlabel("K_d (N·m/°)", fontsize=8)
