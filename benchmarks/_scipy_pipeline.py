@@ -48,7 +48,8 @@ from torsionfit.fit._prior import build_priors
 from torsionfit.fit._problem import AR1_MIN_SAMPLES, NOISE_PRIOR_SD, RHO_PRIOR_SD, _hat_basis, _knot_indices
 from torsionfit.io import HysteresisRun
 from torsionfit.model import Parameter
-from torsionfit.sample._emcee import _burn_thin, _check, _regularised_cov, _tau, default_n_walkers, moves
+from torsionfit.sample._emcee import (_burn_thin, _check, _regularised_cov, _retire_if_rejected, _tau,
+                                      default_n_walkers, moves)
 
 #: the base model's non-linear parameters, in torsionfit's order, with their bijections
 PHYSICS = (
@@ -499,8 +500,8 @@ def run_emcee(problem: NumpyProblem, map_result: MapResult, *, seed: int, n_walk
     dim = problem.dim
     n_walkers = default_n_walkers(dim) if n_walkers is None else int(n_walkers)
     names = tuple(map_result.names)
-    sampler = emcee.EnsembleSampler(n_walkers, dim, problem, vectorize=True,
-                                    moves=moves(map_result.u, map_result.cov))
+    mixture = moves(map_result.u, map_result.cov)
+    sampler = emcee.EnsembleSampler(n_walkers, dim, problem, vectorize=True, moves=mixture)
     rng = np.random.default_rng(seed)
     start = initial_walkers(problem, map_result.u, map_result.cov, n_walkers, rng)
     sampler.random_state = np.random.RandomState(seed).get_state()
@@ -510,6 +511,7 @@ def run_emcee(problem: NumpyProblem, map_result: MapResult, *, seed: int, n_walk
         n = min(check_every, max_steps - sampler.iteration)
         sampler.run_mcmc(start, n, progress=False)
         start = None
+        _retire_if_rejected(mixture[0][0], sampler.iteration, check_every)
         tau = _tau(sampler)
         history.append((int(sampler.iteration), float(np.max(tau))))
         converged, reason = _check(tau, tau_prev, sampler.iteration, tau_factor, tau_rtol, min_steps, names)

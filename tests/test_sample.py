@@ -34,7 +34,8 @@ from torsionfit.sample import (
     save_tree,
     to_datatree,
 )
-from torsionfit.sample._emcee import _LogProb, _regularised_cov, initial_walkers
+from torsionfit.sample._emcee import MOVES_DESCRIPTION, _LogProb, _regularised_cov, initial_walkers
+from torsionfit.sample._laplace_move import LaplaceMove
 from torsionfit.sample._tree import _ar1_noise
 
 BENCH = Path(__file__).parent / "benches" / "rv_small_base.toml"
@@ -154,28 +155,36 @@ def test_hdf5_resume_continues_the_same_chain(tmp_path):
     assert emcee.backends.HDFBackend(str(tmp_path / "b.h5"), read_only=True).iteration == 100
 
 
+def _interrupted_run(monkeypatch, dies_at: int, *args, **kwargs) -> None:
+    """run_sampler(*args, **kwargs) with a KeyboardInterrupt in step ``dies_at`` (while the
+    backend stores it)."""
+    from torsionfit.sample import _emcee
+
+    real_save, saves = _emcee.BufferedHDFBackend.save_step, []
+
+    def flaky(self, state, accepted):
+        saves.append(1)
+        if len(saves) == dies_at:
+            raise KeyboardInterrupt
+        return real_save(self, state, accepted)
+
+    monkeypatch.setattr(_emcee.BufferedHDFBackend, "save_step", flaky)
+    with pytest.raises(KeyboardInterrupt):
+        run_sampler(*args, **kwargs)
+    monkeypatch.setattr(_emcee.BufferedHDFBackend, "save_step", real_save)
+
+
 def test_interrupted_run_keeps_its_steps_and_resumes_exactly(tmp_path, monkeypatch):
     """A KeyboardInterrupt in the middle of a block: the completed steps are on disk, and a
     resumed run ends with the chain of an uninterrupted one."""
-    from torsionfit.sample import _emcee
-
     problem, start, *_ = _toy()
     never = dict(FAST, tau_factor=1e4)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
         run_sampler(problem, start, seed=7, max_steps=300, backend_path=tmp_path / "a.h5", **never)
-        real_save, saves = _emcee.BufferedHDFBackend.save_step, []
-
-        def flaky(self, state, accepted):
-            saves.append(1)
-            if len(saves) == 125:  # dies in step 125, after the first block's 100 steps
-                raise KeyboardInterrupt
-            return real_save(self, state, accepted)
-
-        monkeypatch.setattr(_emcee.BufferedHDFBackend, "save_step", flaky)
-        with pytest.raises(KeyboardInterrupt):
-            run_sampler(problem, start, seed=7, max_steps=300, backend_path=tmp_path / "b.h5", **never)
-        monkeypatch.setattr(_emcee.BufferedHDFBackend, "save_step", real_save)
+        # dies in step 125, after the first block's 100 steps
+        _interrupted_run(monkeypatch, 125, problem, start, seed=7, max_steps=300,
+                         backend_path=tmp_path / "b.h5", **never)
         stored = emcee.backends.HDFBackend(str(tmp_path / "b.h5"), read_only=True).iteration
         assert stored == 124  # every completed step, including those of the unfinished block
         res = run_sampler(problem, start, seed=0, max_steps=300, backend_path=tmp_path / "b.h5",
@@ -187,6 +196,66 @@ def test_interrupted_run_keeps_its_steps_and_resumes_exactly(tmp_path, monkeypat
     b = emcee.backends.HDFBackend(str(tmp_path / "b.h5"), read_only=True).get_chain()
     assert res.n_steps == 300 and np.array_equal(a, b)
     assert again.n_steps == 300 and not again.converged and again.reason
+
+
+def _bad_laplace(dim=3):
+    """The toy with a Laplace approximation far off: centred 3 sd away, 100× too narrow."""
+    problem, start, mean, cov = _toy(dim)
+    bad = SimpleNamespace(u=mean + 3 * np.sqrt(np.diag(cov)), cov=cov * 1e-4, names=start.names)
+    return problem, bad, mean, cov
+
+
+def test_laplace_move_kept_where_its_proposals_are_accepted():
+    problem, start, *_ = _toy()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        res = run_sampler(problem, start, seed=1, **FAST)
+    assert res.moves == MOVES_DESCRIPTION
+
+
+def test_laplace_move_retired_where_its_proposals_are_rejected():
+    """Its share of the steps goes to DE after the first check; the chain still finds the
+    posterior (the walkers start 3 sd off, around the bad approximation)."""
+    problem, bad, mean, cov = _bad_laplace()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        res = run_sampler(problem, bad, seed=1, max_steps=3000, **FAST)
+    assert res.moves.startswith(MOVES_DESCRIPTION + "; LaplaceMove retired at step 100 (acceptance 0.0")
+    draws = res.flat()
+    sd = np.sqrt(np.diag(cov))
+    assert np.all(np.abs(draws.mean(0) - mean) < 0.25 * sd)
+    assert np.allclose(draws.std(0), sd, rtol=0.2)
+
+
+def test_retired_laplace_move_proposes_as_de():
+    move = LaplaceMove(np.zeros(2), np.eye(2))
+    assert np.isnan(move.acceptance)
+    move.restore({"laplace_proposed": 40, "laplace_accepted": 1, "laplace_retired": 1})
+    assert move.retired and move.acceptance == 1 / 40
+    assert move.counters() == {"laplace_proposed": 40, "laplace_accepted": 1, "laplace_retired": 1}
+    called = []
+    move._fallback = SimpleNamespace(propose=lambda model, state: called.append(1) or (state, None))
+    move.propose(None, "state")
+    assert called == [1] and move.proposed == 40  # a retired move no longer counts
+
+
+@pytest.mark.parametrize("dies_at", [60, 125])
+def test_resume_with_a_retired_laplace_move_is_exact(tmp_path, monkeypatch, dies_at):
+    """Interrupted before (60) or after (125) the Laplace move is retired at step 100: the
+    resumed chain is the uninterrupted one (the move's counters are stored with every step)."""
+    problem, bad, *_ = _bad_laplace()
+    never = dict(FAST, tau_factor=1e4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        whole = run_sampler(problem, bad, seed=7, max_steps=300, backend_path=tmp_path / "a.h5", **never)
+        _interrupted_run(monkeypatch, dies_at, problem, bad, seed=7, max_steps=300,
+                         backend_path=tmp_path / "b.h5", **never)
+        res = run_sampler(problem, bad, seed=0, max_steps=300, backend_path=tmp_path / "b.h5",
+                          resume=True, **never)
+    a = emcee.backends.HDFBackend(str(tmp_path / "a.h5"), read_only=True).get_chain()
+    b = emcee.backends.HDFBackend(str(tmp_path / "b.h5"), read_only=True).get_chain()
+    assert "retired at step 100" in whole.moves and res.moves == whole.moves
+    assert np.array_equal(a, b) and np.array_equal(res.chain, whole.chain)
 
 
 def test_resume_rejects_another_problem(tmp_path):

@@ -19,7 +19,10 @@ Choices, and why:
   DE 0.8 + stretch 0.2, ≈ 63 with DE alone; on ``benchmarks/benches/full_fit_2k.toml``
   (3000 steps, ``benchmarks/bench_moves.py``) 43.7 with DE 0.8 + stretch 0.2, 6.2 with this
   mixture, 3.9 with Laplace 0.8 + DE 0.2 — the ensemble moves keep half the weight as insurance for posteriors far from
-  Gaussian.
+  Gaussian. Where the Laplace proposals are almost never accepted (a loop the model misses),
+  their half of the steps would be wasted: at the first check the move is retired when fewer
+  than 5 % were accepted, its share going to DE (``SampleResult.moves`` says so; measured
+  initial-pos1: acceptance ~1 %, τ_max 981 steps with the Laplace move kept, 452 without it).
 - **Walkers**: ``max(32, 2·dim + 2)`` rounded up to even (emcee needs an even ensemble for
   the red–blue split and at least 2·dim walkers). Started from the Laplace approximation
   N(MAP, cov) of ``fit_map`` — cov regularised in correlation form so that the ensemble is
@@ -62,7 +65,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._chunks import map_chunks
-from ._laplace_move import LaplaceMove
+from ._laplace_move import RETIRE_BELOW, LaplaceMove
 
 __all__ = ["BufferedHDFBackend", "ConvergenceWarning", "SampleResult", "batch_log_density",
            "default_n_walkers", "initial_walkers", "run_sampler"]
@@ -173,6 +176,8 @@ class BufferedHDFBackend(emcee.backends.HDFBackend):
         self.flush_every = int(flush_every)
         self._buffer: list = []
         self._shape = None
+        #: () → dict of int attributes stored with every step (a move's counters), or None
+        self.step_attrs = None
 
     def reset(self, nwalkers, ndim):
         self._buffer = []
@@ -196,6 +201,8 @@ class BufferedHDFBackend(emcee.backends.HDFBackend):
             g["accepted"][:] += np.sum([b[2] for b in buf], axis=0)
             for i, v in enumerate(buf[-1][3]):
                 g.attrs[f"random_state_{i}"] = v
+            for k, v in buf[-1][4].items():  # as they were after the last stored step
+                g.attrs[k] = v
             g.attrs["iteration"] = it + n
 
     def save_step(self, state, accepted):
@@ -206,7 +213,8 @@ class BufferedHDFBackend(emcee.backends.HDFBackend):
         if np.shape(state.coords) != self._shape or np.shape(accepted) != self._shape[:1]:
             raise ValueError(f"invalid step shape; expected {self._shape} walkers × dim")
         self._buffer.append((np.array(state.coords, dtype=float), np.array(state.log_prob, dtype=float),
-                             np.asarray(accepted, dtype=float), state.random_state))
+                             np.asarray(accepted, dtype=float), state.random_state,
+                             self.step_attrs() if self.step_attrs else {}))
         if len(self._buffer) >= self.flush_every:
             self.flush()
 
@@ -394,13 +402,21 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
             backend.reset(n_walkers, dim)
     resumed = backend is not None and backend.iteration > 0
 
+    mixture = moves(map_result.u, map_result.cov)
+    laplace = mixture[0][0]
     sampler = emcee.EnsembleSampler(
         n_walkers, dim, _LogProb(problem, batch=n_walkers // 2, evaluate=evaluate), vectorize=True, backend=backend,
-        moves=moves(map_result.u, map_result.cov),
+        moves=mixture,
     )
+    if backend is not None:
+        backend.step_attrs = laplace.counters
     tau_prev = None
     if resumed:
-        # the backend's last state and random state carry on where the run stopped
+        # the backend's last state, random state and the Laplace move's counters carry on
+        # where the run stopped
+        with backend.open() as f:
+            laplace.restore(f[backend.name].attrs)
+        _retire_if_rejected(laplace, sampler.iteration, check_every)
         tau_prev = _tau(sampler) if sampler.iteration > 1 else None
     else:
         rng = np.random.default_rng(seed)
@@ -410,7 +426,9 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
     converged, reason, history = False, "", []
     tau = tau_prev
     while sampler.iteration < max_steps:
-        n = min(check_every, max_steps - sampler.iteration)
+        # blocks end on multiples of check_every, so a resumed run checks (and retires the
+        # Laplace move) at the same steps as an uninterrupted one
+        n = min(check_every - sampler.iteration % check_every, max_steps - sampler.iteration)
         done = sampler.iteration
         try:
             sampler.run_mcmc(start, n, progress=progress,
@@ -419,6 +437,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
             if backend is not None:
                 backend.flush()
         start = None  # later blocks continue from the sampler's last state
+        _retire_if_rejected(laplace, sampler.iteration, check_every)
         tau = _tau(sampler)
         history.append((int(sampler.iteration), float(np.max(tau))))
         converged, reason = _check(tau, tau_prev, sampler.iteration, tau_factor, tau_rtol,
@@ -450,4 +469,15 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
         acceptance_rate=_acceptance_windows(np.asarray(full), burn, thin),
         seed=seed,
         tau_history=tuple(history),
+        moves=MOVES_DESCRIPTION + (f"; LaplaceMove retired at step {check_every} (acceptance "
+                                   f"{laplace.acceptance:.3f} < {RETIRE_BELOW}), its share to DEMove"
+                                   if laplace.retired else ""),
     )
+
+
+def _retire_if_rejected(laplace, iteration: int, check_every: int) -> None:
+    """At the first check (step ``check_every``), retire the Laplace move when its proposals
+    were accepted less often than :data:`RETIRE_BELOW` (once, at a fixed step: see
+    ``_laplace_move.py``)."""
+    if iteration == check_every and not laplace.retired and laplace.acceptance < RETIRE_BELOW:
+        laplace.retire()
