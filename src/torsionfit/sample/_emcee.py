@@ -22,7 +22,7 @@ Choices, and why:
   Gaussian. Where the Laplace proposals are almost never accepted (a loop the model misses),
   their half of the steps would be wasted: at the first check the move is retired when fewer
   than 5 % were accepted, its share going to DE (``SampleResult.moves`` says so; measured
-  initial-pos1: acceptance ~1 %, τ_max 981 steps with the Laplace move kept, 452 without it).
+  initial-pos1: acceptance 0.4 %, τ_max 981 steps with the Laplace move kept, 642 retired).
 - **Walkers**: ``max(32, 2·dim + 2)`` rounded up to even (emcee needs an even ensemble for
   the red–blue split and at least 2·dim walkers). Started from the Laplace approximation
   N(MAP, cov) of ``fit_map`` — cov regularised in correlation form so that the ensemble is

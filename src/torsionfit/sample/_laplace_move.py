@@ -14,9 +14,10 @@ on ``benchmarks/benches/full_fit_2k.toml``). The t tails (heavier than the Gauss
 where it is far off, acceptance falls and the ensemble moves of the mixture do the work.
 
 A move whose proposals are almost never accepted still takes its share of the steps: on a
-measured loop that the base model misses (``examples/cycloidal-jv``, initial-pos1) the
-Laplace proposals were accepted ~1 % of the time and τ_max doubled (452 → 981 steps, the
-chain 23 000 → 49 500 steps). So the move counts its own acceptances, and ``retire()`` hands
+measured loop that the base model misses (``examples/cycloidal-jv``, ``scripts/measured_fits.py``)
+the Laplace proposals were accepted 0.3–0.4 % of the time, and with the move kept the chains
+needed 49 500 (initial-pos1) and 29 500 (initial-pos5) steps, τ_max 981 and 584; retired at
+step 500: 32 500 and 14 000 steps, τ_max 642 and 279. So the move counts its own acceptances, and ``retire()`` hands
 its share of the steps to a differential-evolution move for the rest of the run
 (``run_sampler`` does once, at its first check, when the acceptance is below
 :data:`RETIRE_BELOW`). Switching kernels once, at a fixed step, by a rule on the past keeps
@@ -28,7 +29,7 @@ import emcee
 import numpy as np
 
 #: ``run_sampler`` retires the move when fewer of its proposals than this were accepted in
-#: the first block (measured: ~0.5 on the benchmark loop, ~0.01 on measured initial-pos1)
+#: the first block (measured: ~0.5 on the benchmark loop, 0.003–0.004 on the measured loops)
 RETIRE_BELOW = 0.05
 
 
