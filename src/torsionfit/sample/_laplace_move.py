@@ -15,7 +15,7 @@ where it is far off, acceptance falls and the ensemble moves of the mixture do t
 
 A move whose proposals are almost never accepted still takes its share of the steps: on a
 measured loop that the base model misses (``examples/cycloidal-jv``, ``scripts/measured_fits.py``)
-the Laplace proposals were accepted 0.3–0.4 % of the time, and with the move kept the chains
+the Laplace proposals were accepted 0.3–0.4 % of the time, and with the move kept (commit 4550bc2) the chains
 needed 49 500 (initial-pos1) and 29 500 (initial-pos5) steps, τ_max 981 and 584; retired at
 step 500: 32 500 and 14 000 steps, τ_max 642 and 279. So the move counts its own acceptances, and ``retire()`` hands
 its share of the steps to a differential-evolution move for the rest of the run
