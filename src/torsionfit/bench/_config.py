@@ -20,6 +20,8 @@ EFFECTS = (
     "asymmetry",
     "thermal_drift",
     "torque_offset",
+    "load_dependent_friction",
+    "distributed_friction",
     "encoder_ripple",  # outside the catalog: a sub-division error periodic in the measured angle
 )
 

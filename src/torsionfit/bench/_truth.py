@@ -41,6 +41,8 @@ ACCEPTED: dict[str, tuple[str, ...]] = {
     "speed_compliance_2": ("s2_per_rad2", "per_rpm2"),
     "power_exponent": ("",),
     "compliance_asymmetry": ("",),
+    "breakaway_spread": ("",),
+    "friction_load_coefficient": ("",),
     "drift": ("arcsec_per_s", "arcmin_per_s"),
     "kin_cos": ("rad", "arcsec", "arcmin"),
     "kin_sin": ("rad", "arcsec", "arcmin"),

@@ -51,6 +51,8 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "compliance_asymmetry": (0.0, 0.3),
         "friction_torque": (log(0.02 * rated), 2.0),
         "dahl_torque": (log(0.02 * rated), 2.0),
+        "breakaway_spread": (log(0.5), 1.0),  # log-sd of the elements' break-away levels
+        "friction_load_coefficient": (log(0.1 / 0.9), 1.5),  # logit-normal around μ = 0.1
         "gap": (log(0.1 * twist0), 2.5),
         "gap_torque": (log(0.02 * rated), 2.0),
         "creep_stiffness": (log(5 * k0), 2.0),

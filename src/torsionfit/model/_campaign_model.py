@@ -132,7 +132,7 @@ class CampaignModel(eqx.Module):
         if self.torque_offset:
             # the sensor reads the load + offset: the true load magnitude is reduced by it
             load = data.direction * jnp.abs(data.torque_Nm - params["torque_offset"]) * ones
-        friction_level = params["friction_torque"]
+        friction_level = self.friction.sliding_level(params, load)
         factor = 1.0
         if self.speed is not None:
             friction_level = self.speed.friction_torque(params, friction_level, data.speed_rad_s)

@@ -4,6 +4,7 @@ from .._errors import InputError
 from ._campaign_model import CampaignModel
 from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, ThreeSegmentCompliance
 from ._creep import Creep
+from ._friction import DahlFriction, MaxwellSlipFriction
 from ._kinematic import KinematicHarmonics
 from ._speed import SpeedDependence
 
@@ -11,8 +12,9 @@ from ._speed import SpeedDependence
 def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="auto", free_friction_start: bool = False) -> CampaignModel:
     """The base model plus the extensions named in ``effects`` (the catalog names of
     DESIGN §3: ``stiffness_nonlinearity``, ``rate_dependence``, ``kinematic_error``,
-    ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``), as a bench
-    file's ``[effects]`` table or a user's switches give them."""
+    ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``,
+    ``load_dependent_friction``, ``distributed_friction``), as a bench file's ``[effects]``
+    table or a user's switches give them."""
     compliance = LinearCompliance()
     nonlin = effects.get("stiffness_nonlinearity")
     if nonlin in (True, "three_segment"):
@@ -39,6 +41,7 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         speed = SpeedDependence(viscous=bool(opts.get("viscous", True)), compliance_order=int(opts.get("compliance_order", 0)))
     return CampaignModel(
         free_friction_start=free_friction_start,
+        friction=_friction(effects),
         run_kinds=tuple(run_kinds),
         compliance=compliance,
         creep=Creep() if effects.get("rate_dependence") else None,
@@ -48,3 +51,22 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         torque_offset=bool(effects.get("torque_offset")),
         scan=scan,
     )
+
+
+#: Maxwell-slip elements of ``distributed_friction = true``
+DEFAULT_FRICTION_ELEMENTS = 6
+
+
+def _friction(effects: dict):
+    """Dahl friction, or Maxwell-slip elements (``distributed_friction``); either with a
+    level growing with the load (``load_dependent_friction``)."""
+    load = effects.get("load_dependent_friction", False)
+    if not isinstance(load, bool):
+        raise InputError(f"[effects].load_dependent_friction: expected true or false, got {load!r}")
+    dist = effects.get("distributed_friction", False)
+    if dist is False or dist is None:
+        return DahlFriction(load_dependent=load)
+    n = dist.get("elements", DEFAULT_FRICTION_ELEMENTS) if isinstance(dist, dict) else DEFAULT_FRICTION_ELEMENTS if dist is True else dist
+    if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 64:
+        raise InputError(f"[effects].distributed_friction: expected true or {{elements = N}} with 1 ≤ N ≤ 64, got {dist!r}")
+    return MaxwellSlipFriction(n_elements=n, load_dependent=load)

@@ -1,16 +1,38 @@
-"""Hysteretic friction: a Dahl-type state z ∈ (−1, 1) driven by torque increments."""
+"""Hysteretic friction between the applied torque and the gear mesh.
+
+Every friction model maps the applied torque sequence to a friction torque sequence (N·m);
+the mesh carries ``τ_m = τ − T_fric``. Two families:
+
+- :class:`DahlFriction` (the base model): one smooth Dahl element of level ``T_f``;
+- :class:`MaxwellSlipFriction` (``distributed_friction``): several Maxwell-slip elements —
+  play operators on the torque — whose break-away levels follow a log-normal density around
+  ``T_f``, so pre-sliding after a reversal is gradual, as measured loops show.
+
+Either can make its level grow with the transmitted torque (``load_dependent_friction``):
+gear friction scales with the normal load of the mesh, so after a reversal at a high peak the
+twist stays flat over a much wider torque span than after a small one, and the loading and
+unloading branches are not parallel.
+"""
 
 import abc
+from statistics import NormalDist
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from ._parameter import Parameter
+from ._play import play_scan
 from ._recurrence import ScanMethod, affine_scan
+
+_LOAD = Parameter("friction_load_coefficient", "unit_interval", "1",
+                  "μ: friction level grows by μ·|τ| with the transmitted torque")
 
 
 class AbstractFriction(eqx.Module):
     """Maps a torque sequence to a friction torque sequence (N·m)."""
+
+    load_dependent: eqx.AbstractVar[bool]
 
     @abc.abstractmethod
     def parameters(self) -> tuple[Parameter, ...]: ...
@@ -18,21 +40,32 @@ class AbstractFriction(eqx.Module):
     @abc.abstractmethod
     def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None): ...
 
+    def _load_coefficient(self, params):
+        return params["friction_load_coefficient"] if self.load_dependent else 0.0
+
+    def sliding_level(self, params, torque_Nm):
+        """Friction torque (N·m) while sliding steadily at torque ``torque_Nm`` (TE runs):
+        ``T_f + μ·|τ|``."""
+        return params["friction_torque"] + self._load_coefficient(params) * jnp.abs(torque_Nm)
+
 
 class DahlFriction(AbstractFriction):
-    """``dz = (|dτ|/τ_d)(sgn dτ − z)``; friction torque ``T_f·z``.
+    """``dz = (|dτ|/τ_d)(sgn dτ − z)``; friction torque ``(T_f + μ|τ|)·z`` (μ = 0 unless
+    ``load_dependent``).
 
     Exact one-sample update ``z ← a z + b``, ``a = exp(−|Δτ|/τ_d)``, ``b = sgn(Δτ)(1 − a)``.
     ``initial_state`` is z at the first sample (0: the unit starts at rest, unloaded).
     """
 
     initial_state: float = eqx.field(static=True, default=0.0)
+    load_dependent: bool = eqx.field(static=True, default=False)
 
     def parameters(self):
-        return (
+        out = (
             Parameter("friction_torque", "positive", "N·m", "Coulomb friction level T_f"),
             Parameter("dahl_torque", "positive", "N·m", "torque change τ_d to saturate friction"),
         )
+        return out + ((_LOAD,) if self.load_dependent else ())
 
     def state(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None):
         """Friction state z per sample (dimensionless, in (−1, 1)); ``initial_state``
@@ -45,4 +78,55 @@ class DahlFriction(AbstractFriction):
         return jnp.concatenate([z0[None], z])
 
     def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None):
-        return params["friction_torque"] * self.state(params, torque_Nm, method, initial_state)
+        return self.sliding_level(params, torque_Nm) * self.state(params, torque_Nm, method, initial_state)
+
+
+class MaxwellSlipFriction(AbstractFriction):
+    """``n_elements`` Maxwell-slip elements in parallel, each a play operator on the torque.
+
+    Element k carries the mesh share ``p_k``; it sticks while ``|τ − p_k| ≤ R_k`` and slides
+    at that limit otherwise (exact per sample: ``p_k ← clamp(p_k, τ − R_k, τ + R_k)``), with
+    ``R_k = r_k + μ|τ|``. The break-away levels ``r_k = T_f·exp(s·q_k − s²/2)`` sit at the
+    quantiles ``q_k`` of a standard normal: a log-normal break-away density of median
+    ``T_f·e^(−s²/2)`` and mean ≈ ``T_f`` (the sliding friction level), spread ``s``. The
+    friction torque is ``τ − mean_k p_k``. One element with s → 0 is ideal Coulomb friction.
+
+    ``initial_state`` z0 ∈ (−1, 1) places every element at ``p_k = τ_0 − z0·R_k`` at the first
+    sample (0: at rest, no friction load).
+    """
+
+    n_elements: int = eqx.field(static=True, default=6)
+    initial_state: float = eqx.field(static=True, default=0.0)
+    load_dependent: bool = eqx.field(static=True, default=False)
+
+    def __check_init__(self):
+        if self.n_elements < 1:
+            raise ValueError(f"n_elements must be ≥ 1, got {self.n_elements}")
+
+    def parameters(self):
+        out = (Parameter("friction_torque", "positive", "N·m", "sliding friction level T_f (mean break-away)"),)
+        if self.n_elements > 1:
+            out += (Parameter("breakaway_spread", "positive", "1", "log-sd s of the elements' break-away levels"),)
+        return out + ((_LOAD,) if self.load_dependent else ())
+
+    def _quantiles(self) -> np.ndarray:
+        return np.array([NormalDist().inv_cdf((k + 0.5) / self.n_elements) for k in range(self.n_elements)])
+
+    def breakaway_levels(self, params):
+        """Break-away torque r_k of each element at zero load (N·m)."""
+        if self.n_elements == 1:
+            return jnp.atleast_1d(params["friction_torque"])
+        s = params["breakaway_spread"]
+        return params["friction_torque"] * jnp.exp(s * self._quantiles() - 0.5 * s**2)
+
+    def mesh_shares(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None):
+        """Each element's mesh share p_k per sample: (N, n_elements), N·m."""
+        tau = jnp.asarray(torque_Nm)
+        limit = self.breakaway_levels(params)[None, :] + self._load_coefficient(params) * jnp.abs(tau)[:, None]
+        z0 = self.initial_state if initial_state is None else initial_state
+        p0 = tau[0] - z0 * limit[0]
+        p = play_scan(tau[1:, None] - limit[1:], tau[1:, None] + limit[1:], p0, method)
+        return jnp.concatenate([p0[None, :], p], axis=0)
+
+    def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None):
+        return jnp.asarray(torque_Nm) - jnp.mean(self.mesh_shares(params, torque_Nm, method, initial_state), axis=1)

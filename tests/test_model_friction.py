@@ -1,0 +1,112 @@
+"""Friction for real loops: play operators, Maxwell-slip elements, load-dependent levels
+(DESIGN §1.1, "What real loops add")."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import torsionfit.model as m
+
+
+def _play_numpy(lo, hi, x0):
+    x, out = np.asarray(x0, float), []
+    for a, b in zip(lo, hi):
+        x = np.clip(x, a, b)
+        out.append(x)
+    return np.array(out)
+
+
+@pytest.mark.parametrize("method", ["serial", "associative"])
+def test_play_scan_matches_a_plain_loop(method):
+    rng = np.random.default_rng(1)
+    tau = np.cumsum(rng.normal(size=(300, 1)), axis=0)
+    r = np.array([[0.3, 1.0, 2.5]])
+    got = m.play_scan(tau - r, tau + r, 0.7, method)
+    np.testing.assert_allclose(np.asarray(got), _play_numpy(tau - r, tau + r, np.full(3, 0.7)), atol=1e-12)
+
+
+def _triangle(peaks, samples_per_leg=400):
+    """0 → +p1 → −p1 → +p2 → −p2 …: a torque sequence with reversals at the given peaks."""
+    knots = [0.0]
+    for p in peaks:
+        knots += [p, -p]
+    return np.concatenate([np.linspace(a, b, samples_per_leg, endpoint=False) for a, b in zip(knots[:-1], knots[1:])])
+
+
+def _flat_span_after_top(friction, params, peak):
+    """Torque span over which the mesh torque stays constant after the reversal at +peak."""
+    tau = _triangle([peak, peak])
+    mesh = tau - np.asarray(friction.friction_torque(params, jnp.asarray(tau)))
+    top = int(np.argmax(tau[:1200]))
+    after = mesh[top:top + 400]
+    stuck = np.abs(after - after[0]) < 1e-9
+    n = int(np.argmin(stuck)) if not stuck.all() else len(stuck)
+    return tau[top] - tau[top + n - 1]
+
+
+def test_one_element_is_coulomb_friction():
+    """One element sticks over 2·T_f of torque after a reversal, whatever the peak."""
+    f = m.MaxwellSlipFriction(n_elements=1)
+    p = {"friction_torque": 2.0}
+    for peak in (10.0, 40.0):
+        assert _flat_span_after_top(f, p, peak) == pytest.approx(4.0, abs=2 * peak / 400 + 1e-9)
+
+
+def test_load_dependent_friction_widens_the_flat_span_with_the_peak():
+    f = m.MaxwellSlipFriction(n_elements=1, load_dependent=True)
+    p = {"friction_torque": 1.0, "friction_load_coefficient": 0.2}
+    small, large = _flat_span_after_top(f, p, 5.0), _flat_span_after_top(f, p, 40.0)
+    # stick until τ(1 + μ) = P(1 − μ) − 2r: span = 2(r + μP)/(1 + μ)
+    for peak, got in ((5.0, small), (40.0, large)):
+        assert got == pytest.approx(2 * (1.0 + 0.2 * peak) / 1.2, abs=2 * peak / 400 + 1e-9)
+    assert large > 3 * small
+
+
+def test_distributed_elements_make_presliding_gradual():
+    """Several elements leave the flat part sooner and curve into sliding: the mesh torque's
+    slope after the reversal rises in steps instead of jumping from 0 to 1."""
+    tau = _triangle([20.0, 20.0])
+    top = int(np.argmax(tau[:1200]))
+    one = m.MaxwellSlipFriction(n_elements=1)
+    many = m.MaxwellSlipFriction(n_elements=6)
+    mesh_one = tau - np.asarray(one.friction_torque({"friction_torque": 3.0}, jnp.asarray(tau)))
+    mesh_many = tau - np.asarray(many.friction_torque({"friction_torque": 3.0, "breakaway_spread": 0.8}, jnp.asarray(tau)))
+    slope_one = np.unique(np.round(np.diff(mesh_one[top:top + 300]) / np.diff(tau[top:top + 300]), 6))
+    slope_many = np.unique(np.round(np.diff(mesh_many[top:top + 300]) / np.diff(tau[top:top + 300]), 6))
+    assert set(slope_one) <= {0.0, 1.0}
+    assert len(slope_many) >= 6  # 0, 1/6, 2/6, … as the elements break away one by one
+    # the mean break-away is about T_f: far from the reversal both slide at the same level
+    assert mesh_many[top + 390] == pytest.approx(mesh_one[top + 390], rel=0.05)
+
+
+def test_dahl_load_dependence_and_te_sliding_level():
+    f = m.DahlFriction(load_dependent=True)
+    p = {"friction_torque": 1.0, "dahl_torque": 0.2, "friction_load_coefficient": 0.1}
+    tau = jnp.linspace(0.0, 30.0, 601)
+    ft = np.asarray(f.friction_torque(p, tau))
+    assert ft[-1] == pytest.approx(1.0 + 0.1 * 30.0, rel=1e-6)  # saturated: T_f + μ|τ|
+    assert float(f.sliding_level(p, -30.0)) == pytest.approx(4.0)
+    assert float(m.DahlFriction().sliding_level({"friction_torque": 1.0}, 30.0)) == pytest.approx(1.0)
+
+
+def test_friction_effects_switch_on_by_name_and_are_differentiable():
+    model = m.model_with_effects(("hysteresis", "transmission_error"),
+                                 {"load_dependent_friction": True, "distributed_friction": {"elements": 4}}, 20.0)
+    assert isinstance(model.friction, m.MaxwellSlipFriction) and model.friction.n_elements == 4
+    names = [p.name for p in model.parameters()]
+    assert "breakaway_spread" in names and "friction_load_coefficient" in names and "dahl_torque" not in names
+    tau = _triangle([10.0, 10.0], 100)
+    inputs = [m.hysteresis_input(np.arange(len(tau)) * 0.01, tau), m.te_input(np.linspace(0, 2 * np.pi, 50), 10.0, 5.0, 1)]
+    base = dict(stiffness=400.0, friction_torque=1.0, breakaway_spread=0.5, friction_load_coefficient=0.2,
+                gap=0.01, gap_torque=0.5, angle_offset=jnp.zeros(1), te_offset=jnp.zeros(1))
+
+    def loss(mu):
+        return sum(jnp.sum(y**2) for y in model.predict({**base, "friction_load_coefficient": mu}, inputs))
+
+    g = jax.grad(loss)(0.2)
+    assert np.isfinite(float(g)) and float(g) != 0.0
+    with pytest.raises(Exception, match="distributed_friction"):
+        m.model_with_effects(("hysteresis",), {"distributed_friction": "lots"}, 20.0)
+    with pytest.raises(Exception, match="load_dependent_friction"):
+        m.model_with_effects(("hysteresis",), {"load_dependent_friction": 0.3}, 20.0)
