@@ -1,8 +1,12 @@
 """Catalog metrics of a whole campaign: the `torsionfit metrics` JSON (DESIGN §5.2) and table."""
 
 from ..io._campaign import Campaign, HysteresisRun, TransmissionErrorRun
-from ._hysteresis import hysteresis_metrics
+from .._errors import InputError
+from ._hysteresis import hysteresis_run_metrics
 from ._te import te_metrics
+
+#: the TE metrics named in a note when a TE run cannot be read
+TE_METRICS = ("kd", "kt")
 
 
 def reference_run_for(
@@ -25,13 +29,6 @@ def reference_run_for(
     return min(candidates, key=lambda r: abs(float(r.speed_rpm) - float(run.speed_rpm)))
 
 
-def _run_torque(campaign: Campaign, run: HysteresisRun) -> float:
-    """T_r for a hysteresis run: the rated torque, or the run's nominal peak load if lower."""
-    rated = float(campaign.reducer.rated_torque_Nm)
-    peak = getattr(run, "peak_torque_Nm", None)
-    return rated if peak is None else min(rated, float(peak))
-
-
 def campaign_metrics(
     campaign: Campaign,
     *,
@@ -42,41 +39,51 @@ def campaign_metrics(
 ) -> dict:
     """Catalog metrics of every run, as the `torsionfit metrics --json` document.
 
-    Returns ``{"runs": [{"name", "kind", "metrics": {NAME: {"value", "unit"[, "note"]}}}]}``
-    in manifest order, plain floats and strings only (JSON-serialisable). Hysteresis runs use
-    :func:`hysteresis_metrics` at the reducer's rated torque (or at the run's nominal peak
-    load ``peak_torque_Nm`` when that is lower); TE runs use :func:`te_metrics` against the
+    Returns ``{"runs": [{"name", "kind", "metrics": {NAME: {"value", "unit"[, "note"]}},
+    "notes": {NAME: text}}]}`` in manifest order, plain floats and strings only
+    (JSON-serialisable). Every metric that can be computed is in ``metrics`` with a finite
+    value; one that cannot is left out of ``metrics`` and its reason is in ``notes`` (so a
+    consumer reading ``metrics[NAME]["value"]`` never meets a null).
+
+    Hysteresis runs use :func:`hysteresis_run_metrics`: the loop metrics at the reducer's rated
+    torque (or at the run's nominal peak load ``peak_torque_Nm`` when that is lower or no rated
+    torque is given; with neither, at the loop's own peak), ``play`` from the smallest cycles
+    and ``stiffness_loading`` from the largest. TE runs use :func:`te_metrics` against the
     no-load run of the same direction when there is one (:func:`reference_run_for`).
-    Raises :class:`InputError` naming the run when a metric cannot be computed.
     """
+    rated = campaign.reducer.rated_torque_Nm
     runs = []
     for run in campaign.runs:
+        notes: dict[str, str] = {}
         if isinstance(run, HysteresisRun):
-            metrics = hysteresis_metrics(
-                run,
-                _run_torque(campaign, run),
-                lost_motion_pct=lost_motion_pct,
-                t1_Nm=t1_Nm,
-                t2_Nm=t2_Nm,
+            metrics, notes = hysteresis_run_metrics(
+                run, rated, lost_motion_pct=lost_motion_pct, t1_Nm=t1_Nm, t2_Nm=t2_Nm
             )
         elif isinstance(run, TransmissionErrorRun):
-            metrics = te_metrics(
-                run, reference_run_for(campaign, run), te_window_deg=te_window_deg
-            )
+            try:
+                metrics = te_metrics(
+                    run, reference_run_for(campaign, run), te_window_deg=te_window_deg
+                )
+            except InputError as err:
+                metrics, notes = {}, {name: str(err) for name in TE_METRICS}
         else:  # pragma: no cover - the io layer only makes these two kinds
             continue
-        runs.append({"name": run.name, "kind": run.kind, "metrics": metrics})
+        runs.append({"name": run.name, "kind": run.kind, "metrics": metrics, "notes": notes})
     return {"runs": runs}
 
 
 def format_metrics_table(result: dict) -> str:
     """A fixed-width terminal table of a :func:`campaign_metrics` result: one block per run,
-    one line per metric with its value and unit (notes are in the JSON)."""
+    one line per metric with its value and unit (the metrics' notes are in the JSON), then one
+    line per metric that could not be computed, with its reason."""
     blocks = []
     for run in result["runs"]:
         lines = [f"{run['name']} ({run['kind']})"]
-        width = max((len(name) for name in run["metrics"]), default=0)
+        notes = run.get("notes", {})
+        width = max((len(name) for name in [*run["metrics"], *notes]), default=0)
         for name, entry in run["metrics"].items():
             lines.append(f"  {name:<{width}}  {entry['value']:>14.6g}  {entry['unit']}")
+        for name, note in notes.items():
+            lines.append(f"  {name:<{width}}  {'—':>14}  not computed: {note}")
         blocks.append("\n".join(lines))
     return "\n\n".join(blocks) + "\n"

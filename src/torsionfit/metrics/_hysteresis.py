@@ -128,24 +128,28 @@ def _binned_curve(
     return curve
 
 
-def _check_run(run: HysteresisRun) -> tuple[np.ndarray, np.ndarray]:
-    tau = np.asarray(run.torque_Nm, dtype=float)
-    theta = np.asarray(run.angle_rad, dtype=float)
-    time = np.asarray(run.time_s, dtype=float)
+def _check_arrays(name: str, time_s, torque_Nm, angle_rad) -> tuple[np.ndarray, np.ndarray]:
+    tau = np.asarray(torque_Nm, dtype=float)
+    theta = np.asarray(angle_rad, dtype=float)
+    time = np.asarray(time_s, dtype=float)
     if not (tau.ndim == theta.ndim == time.ndim == 1 and tau.size == theta.size == time.size):
         raise InputError(
-            f"hysteresis run {run.name!r}: time, torque and angle must be 1-D arrays of one length"
+            f"hysteresis run {name!r}: time, torque and angle must be 1-D arrays of one length"
         )
     if tau.size < 20:
         raise InputError(
-            f"hysteresis run {run.name!r}: {tau.size} samples; a hysteresis loop needs at least 20"
+            f"hysteresis run {name!r}: {tau.size} samples; a hysteresis loop needs at least 20"
         )
     if not (np.all(np.isfinite(tau)) and np.all(np.isfinite(theta)) and np.all(np.isfinite(time))):
-        raise InputError(f"hysteresis run {run.name!r}: non-finite time, torque or angle values")
+        raise InputError(f"hysteresis run {name!r}: non-finite time, torque or angle values")
     # Equal time stamps are fine (benches quantise time): nothing below divides by Δt.
     if np.any(np.diff(time) < 0):
-        raise InputError(f"hysteresis run {run.name!r}: time goes backwards; expected time order")
+        raise InputError(f"hysteresis run {name!r}: time goes backwards; expected time order")
     return tau, theta
+
+
+def _check_run(run: HysteresisRun) -> tuple[np.ndarray, np.ndarray]:
+    return _check_arrays(run.name, run.time_s, run.torque_Nm, run.angle_rad)
 
 
 def loop_branches(
@@ -237,6 +241,357 @@ def loop_branches(
     )
 
 
+# ----------------------------------------------------------------------------- amplitude classes
+#
+# A bench file often holds ramps of several amplitudes in one run: small "play" ramps first,
+# then large "stiffness" ramps. ``loop_branches`` keeps only the branches that sweep the whole
+# range (the large cycles); the amplitude classes below keep every cycle and group them by size.
+
+#: turning points for the amplitude classes: a retreat larger than this fraction of the run's
+#: torque range (or 8 σ of the noise left in the smoothed torque), so small ramps are split too
+#: (play ramps of ±4 N·m among stiffness ramps of ±40 N·m retreat by 8 N·m, 10 % of the range)
+CYCLE_REVERSAL_FRACTION = 0.05
+#: ... and a retreat larger than this fraction of the ramp it ends (its excursion from the
+#: previous turning point): a controller's torque oscillation inside a ramp is no reversal.
+#: The price: small ramps of amplitude a right after a ramp from a large peak L are seen only
+#: when 2a > 0.25 (L + a), i.e. a > L/7; benches run their play ramps first.
+CYCLE_RELATIVE_RETREAT = 0.25
+#: a cycle branch crosses zero torque and its smaller peak |τ| is at least this fraction of its
+#: larger one (a ramp from a small trough up to a large peak belongs to no amplitude class)
+CYCLE_SYMMETRY = 0.5
+#: branches whose amplitudes differ by less than this factor are one amplitude class
+AMPLITUDE_CLASS_RATIO = 1.3
+
+
+def _merge_wiggles(
+    smooth: np.ndarray, segments: list[tuple[int, int, int]], threshold: float, relative: float
+) -> list[tuple[int, int, int]]:
+    """Monotone segments again, keeping only turning points whose retreat exceeds
+    ``max(threshold, relative × excursion of the ramp they end)``: a zig-zag filter over the
+    turning points of :func:`split_monotone`, with a threshold relative to each ramp's size."""
+    points = [segments[0][0]] + [stop for _, stop, _ in segments]
+    y = smooth[points]
+    if len(points) < 3:
+        return list(segments)
+    turns = [0]
+    cand = 1
+    direction = 1 if y[1] > y[0] else -1
+    for j in range(2, len(points)):
+        if direction * (y[j] - y[cand]) > 0:
+            cand = j  # the ramp goes on past its previous extreme
+            continue
+        ramp = abs(y[cand] - y[turns[-1]])
+        if abs(y[cand] - y[j]) > max(threshold, relative * ramp):
+            turns.append(cand)
+            direction = -direction
+            cand = j
+    turns += [cand, len(points) - 1]
+    bounds = sorted({points[t] for t in turns})
+    return [
+        (a, b, 1 if smooth[b] > smooth[a] else -1) for a, b in zip(bounds[:-1], bounds[1:]) if b > a
+    ]
+
+
+@dataclass(frozen=True, eq=False)
+class AmplitudeClass:
+    """The cycles of one amplitude, resampled on a common torque grid (SI units).
+
+    ``amplitude_Nm`` is the median over its branches of min(|trough|, peak) of the smoothed
+    torque; ``upper_rad`` the mean of its decreasing-torque branches, ``lower_rad`` the mean of
+    its increasing-torque branches, on ``torque_Nm`` (the torque range all its branches share).
+    ``segment_ids`` index :attr:`CycleClasses.segments`.
+    """
+
+    amplitude_Nm: float
+    torque_Nm: np.ndarray
+    upper_rad: np.ndarray
+    lower_rad: np.ndarray
+    n_upper: int
+    n_lower: int
+    segment_ids: tuple[int, ...]
+
+    @property
+    def width_rad(self) -> np.ndarray:
+        """Loop width in angle, upper − lower, at each grid torque (rad)."""
+        return self.upper_rad - self.lower_rad
+
+
+@dataclass(frozen=True, eq=False)
+class CycleClasses:
+    """A run's cycles grouped by amplitude, ``classes`` sorted from smallest to largest.
+
+    ``segments`` are all monotone segments of the smoothed torque, ``(start, stop, direction)``
+    as in :class:`LoopBranches`; ``dropped`` says why amplitude groups were not kept (one
+    direction only).
+    """
+
+    smoothed_torque_Nm: np.ndarray
+    segments: tuple[tuple[int, int, int], ...]
+    classes: tuple[AmplitudeClass, ...]
+    dropped: tuple[str, ...] = ()
+
+    @property
+    def smallest(self) -> AmplitudeClass:
+        return self.classes[0]
+
+    @property
+    def largest(self) -> AmplitudeClass:
+        return self.classes[-1]
+
+
+def cycle_classes(
+    time_s,
+    torque_Nm,
+    angle_rad,
+    *,
+    name: str = "run",
+    n_grid: int = DEFAULT_N_GRID,
+    smooth_samples: int | None = None,
+) -> CycleClasses:
+    """Split a hysteresis record into monotone torque ramps and group its cycles by amplitude.
+
+    Array level (no Campaign objects): ``time_s`` (s, non-decreasing, repeated stamps are fine),
+    ``torque_Nm`` (N·m) and ``angle_rad`` (rad), 1-D of one length; ``name`` only names the
+    record in messages.
+
+    - The torque is smoothed as in :func:`loop_branches` (running median of 5, quadratic
+      Savitzky–Golay over ``smooth_samples``, default about 1/400 of the record) and split at
+      its turning points, a turning point needing a retreat larger than
+      ``max(CYCLE_REVERSAL_FRACTION × range, 8 σ)`` (so that small ramps are split as well)
+      and larger than ``CYCLE_RELATIVE_RETREAT`` × the ramp it ends (so that a controller's
+      torque oscillation inside a ramp is not taken for a reversal).
+    - A *cycle branch* is a segment that crosses zero torque with min(|trough|, peak) at least
+      ``CYCLE_SYMMETRY`` × max(|trough|, peak); its amplitude is min(|trough|, peak). A virgin
+      loading from zero, a final partial ramp or a ramp from a small trough to a large peak is
+      no cycle branch.
+    - Branches are sorted by amplitude and split into classes wherever the next amplitude is
+      more than ``AMPLITUDE_CLASS_RATIO`` times the previous one. A class needs an increasing
+      and a decreasing branch; its branches are binned on ``n_grid`` torques over the range they
+      all share (bin means by smoothed torque, as in :func:`loop_branches`) and averaged by
+      direction.
+
+    Raises :class:`InputError` when the record holds no class with both directions.
+    """
+    tau, theta = _check_arrays(name, time_s, torque_Nm, angle_rad)
+    if n_grid < 11:
+        raise InputError(f"n_grid must be at least 11, got {n_grid}")
+    width = _default_window(tau.size) if smooth_samples is None else int(smooth_samples)
+    width = max(1, width | 1)
+    smooth, sigma = _smooth_torque(tau, width)
+    span = float(np.ptp(smooth))
+    if span <= 0:
+        raise InputError(f"hysteresis run {name!r}: the torque never changes; expected a loop")
+    # Split at every reversal above the noise, then keep the turning points that pass both
+    # thresholds (the zig-zag over them judges the first extreme by its retreat alone).
+    noise = max(_NOISE_SIGMAS * sigma, 1e-12 * span)
+    threshold = max(CYCLE_REVERSAL_FRACTION * span, noise)
+    segments = _merge_wiggles(
+        smooth, _split_monotone(smooth, noise), threshold, CYCLE_RELATIVE_RETREAT
+    )
+
+    amplitude = {}
+    for k, (start, stop, _) in enumerate(segments):
+        lo, hi = float(smooth[start : stop + 1].min()), float(smooth[start : stop + 1].max())
+        if lo < 0 < hi and min(-lo, hi) >= CYCLE_SYMMETRY * max(-lo, hi):
+            amplitude[k] = min(-lo, hi)
+    groups: list[list[int]] = []
+    for k in sorted(amplitude, key=amplitude.get):
+        if groups and amplitude[k] <= AMPLITUDE_CLASS_RATIO * amplitude[groups[-1][-1]]:
+            groups[-1].append(k)
+        else:
+            groups.append([k])
+
+    classes, dropped = [], []
+    for ids in groups:
+        ids = sorted(ids)
+        amp = float(np.median([amplitude[k] for k in ids]))
+        upper_ids = [k for k in ids if segments[k][2] < 0]  # decreasing torque
+        lower_ids = [k for k in ids if segments[k][2] > 0]  # increasing torque
+        if not upper_ids or not lower_ids:
+            dropped.append(
+                f"{len(ids)} ramp(s) of amplitude {amp:.3g} N·m all in one direction (no loop)"
+            )
+            continue
+        g_lo = max(float(smooth[segments[k][0] : segments[k][1] + 1].min()) for k in ids)
+        g_hi = min(float(smooth[segments[k][0] : segments[k][1] + 1].max()) for k in ids)
+        grid = np.linspace(g_lo, g_hi, n_grid)
+        spacing = float(grid[1] - grid[0])
+
+        def curves(sel: list[int]) -> np.ndarray:
+            return np.array(
+                [
+                    _binned_curve(smooth[s : e + 1], theta[s : e + 1], grid, spacing)
+                    for s, e, _ in (segments[k] for k in sel)
+                ]
+            )
+
+        classes.append(
+            AmplitudeClass(
+                amplitude_Nm=amp,
+                torque_Nm=grid,
+                upper_rad=curves(upper_ids).mean(axis=0),
+                lower_rad=curves(lower_ids).mean(axis=0),
+                n_upper=len(upper_ids),
+                n_lower=len(lower_ids),
+                segment_ids=tuple(ids),
+            )
+        )
+    if not classes:
+        raise InputError(
+            f"hysteresis run {name!r}: no full cycle found (no increasing and decreasing torque "
+            f"ramps of one amplitude crossing zero torque); expected ramps between a negative "
+            f"and a positive peak"
+        )
+    return CycleClasses(smooth, tuple(segments), tuple(classes), tuple(dropped))
+
+
+# ----------------------------------------------------------------------------- play, loading slope
+
+#: the loading-slope fit ends at this fraction of the class's peak on each side: a bench whose
+#: torque saturates sits on a plateau at the peak while the command keeps rising
+LOADING_FIT_TOP = 0.9
+#: the loading-slope fit must start below this fraction of the peak (else too little of the
+#: branch lies beyond the play for a slope)
+LOADING_FIT_MAX_START = 0.5
+
+
+@dataclass(frozen=True)
+class LoadingFit:
+    """Least-squares loading compliances of one amplitude class (SI: rad/N·m, N·m).
+
+    ``compliance_pos``: slope dθ/dτ of the increasing-torque branch over
+    ``start_pos_Nm ≤ τ ≤ end_pos_Nm``; ``compliance_neg``: slope of the decreasing-torque
+    branch over ``−end_neg_Nm ≤ τ ≤ −start_neg_Nm`` (both positive numbers for a loop whose
+    angle grows with torque). ``centre_rad`` is the loop midpoint at zero torque the play
+    threshold is measured from, ``play_rad`` the play used.
+    """
+
+    compliance_pos: float
+    compliance_neg: float
+    start_pos_Nm: float
+    end_pos_Nm: float
+    start_neg_Nm: float
+    end_neg_Nm: float
+    centre_rad: float
+    play_rad: float
+    amplitude_Nm: float
+
+    @property
+    def compliance(self) -> float:
+        """Mean of the + and − compliances (rad/N·m), as the data authors average them."""
+        return 0.5 * (self.compliance_pos + self.compliance_neg)
+
+    @property
+    def stiffness(self) -> float:
+        """``1 / compliance`` (N·m/rad): the loading stiffness."""
+        return 1.0 / self.compliance
+
+
+def play_of(cls: AmplitudeClass) -> float:
+    """Loop width in angle at zero torque of one amplitude class (rad): θ_down(0) − θ_up(0),
+    the mean decreasing-torque branch minus the mean increasing-torque branch."""
+    return float(np.interp(0.0, cls.torque_Nm, cls.width_rad))
+
+
+def loading_fit(
+    cls: AmplitudeClass, play_rad: float, *, name: str = "run", top: float = LOADING_FIT_TOP
+) -> LoadingFit:
+    """Loading-branch compliances of ``cls`` beyond the play (see :func:`loading_compliance_from_arrays`).
+
+    The loading branches are the increasing-torque branch for τ > 0 and the decreasing-torque
+    branch for τ < 0 (|τ| growing away from zero). With θ_c = θ − θ_mid(0), θ_mid(0) the loop
+    midpoint at zero torque, a side's fit starts at the first grid torque beyond which the
+    branch stays past half the play (θ_c ≥ play/2 on the + side, θ_c ≤ −play/2 on the − side):
+    there the gap has been crossed and the mesh is loaded. It ends at ``top`` × the class's
+    peak on that side, which keeps a torque plateau at the peak out of the fit. Raises
+    :class:`InputError` when a side has no such range starting below
+    ``LOADING_FIT_MAX_START`` × its peak, or its slope is not positive.
+    """
+    grid, upper, lower = cls.torque_Nm, cls.upper_rad, cls.lower_rad
+    centre = 0.5 * float(np.interp(0.0, grid, upper) + np.interp(0.0, grid, lower))
+    half = 0.5 * max(float(play_rad), 0.0)
+    out = {}
+    # + side: increasing-torque branch, τ > 0; − side: decreasing branch mirrored to τ > 0.
+    for side, tau, theta in (
+        ("pos", grid, lower - centre),
+        ("neg", -grid[::-1], -(upper[::-1] - centre)),
+    ):
+        peak = float(tau[-1])
+        where = "positive" if side == "pos" else "negative"
+        end = top * peak
+        part = (tau > 0) & (tau <= end)
+        t, th = tau[part], theta[part]
+        inside = np.flatnonzero(th < half)
+        first = 0 if inside.size == 0 else inside[-1] + 1
+        if peak <= 0 or first >= t.size or t[first] > LOADING_FIT_MAX_START * peak:
+            reached = "never" if first >= t.size else f"only at {t[first]:.3g} N·m"
+            raise InputError(
+                f"hysteresis run {name!r}: the {where} loading branch of the ±{cls.amplitude_Nm:.3g} N·m "
+                f"cycles gets past half the play ({half * 180 / math.pi:.3g}°) {reached}, beyond "
+                f"{LOADING_FIT_MAX_START:g} × its peak {peak:.3g} N·m; expected a loading range "
+                f"beyond the play for a slope"
+            )
+        t, th = t[first:], th[first:]
+        if t.size < 3:
+            raise InputError(
+                f"hysteresis run {name!r}: too few torque grid points on the {where} loading branch"
+            )
+        slope = float(np.polyfit(t, th, 1)[0])
+        if not slope > 0:
+            raise InputError(
+                f"hysteresis run {name!r}: the {where} loading branch does not twist further with "
+                f"torque beyond the play (slope {slope:.3g} rad/N·m); check the angle sign"
+            )
+        out[side] = (slope, float(t[0]), float(t[-1]))
+    return LoadingFit(
+        compliance_pos=out["pos"][0],
+        compliance_neg=out["neg"][0],
+        start_pos_Nm=out["pos"][1],
+        end_pos_Nm=out["pos"][2],
+        start_neg_Nm=out["neg"][1],
+        end_neg_Nm=out["neg"][2],
+        centre_rad=centre,
+        play_rad=float(play_rad),
+        amplitude_Nm=cls.amplitude_Nm,
+    )
+
+
+def play_from_arrays(time_s, torque_Nm, angle_rad, *, name: str = "run") -> float:
+    """Play (rad) of a hysteresis record: the loop width at zero torque of its smallest cycles.
+
+    Array level (no Campaign objects): ``time_s`` (s), ``torque_Nm`` (N·m), ``angle_rad`` (rad),
+    1-D of one length. The record is split into monotone torque ramps and its cycles grouped by
+    amplitude (:func:`cycle_classes`); the class of smallest amplitude — the play ramps a bench
+    runs before its stiffness ramps, or the only class there is — is resampled on the torque
+    range its branches share, averaged by direction, and the play is the width θ_down(0) −
+    θ_up(0) between its decreasing- and increasing-torque branch at zero torque. This is the
+    data authors' play ("the deflection jump between the start of the rising positive slope
+    and the start of the rising negative slope of the small-ramp loop"). It includes whatever
+    friction holds the loop open at zero torque: the data cannot separate gap from friction.
+    """
+    return play_of(cycle_classes(time_s, torque_Nm, angle_rad, name=name).smallest)
+
+
+def loading_compliance_from_arrays(
+    time_s, torque_Nm, angle_rad, *, play_rad: float | None = None, name: str = "run"
+) -> tuple[float, float]:
+    """Loading compliances ``(positive, negative)`` (rad/N·m) of a hysteresis record.
+
+    Array level (no Campaign objects), arguments as :func:`play_from_arrays`. The catalog and
+    data authors' definition: on the largest-amplitude cycles (the stiffness ramps), the slope
+    of angle against torque of the *loading* branches — increasing torque for τ > 0,
+    decreasing torque for τ < 0 — fitted by least squares from where the branch has crossed
+    the play (its angle from the loop midpoint at zero torque is past half the play) to 90 %
+    of the peak, separately for + and − (:func:`loading_fit`). ``play_rad`` defaults to
+    :func:`play_from_arrays` of the same record. The loading stiffness is
+    ``1 / mean(positive, negative)``: the authors average compliances, not stiffnesses.
+    """
+    classes = cycle_classes(time_s, torque_Nm, angle_rad, name=name)
+    play = play_of(classes.smallest) if play_rad is None else float(play_rad)
+    fit = loading_fit(classes.largest, play, name=name)
+    return fit.compliance_pos, fit.compliance_neg
+
+
 # ----------------------------------------------------------------------------- metrics
 
 
@@ -273,7 +628,7 @@ def _stiffness_entries(name: str, k_si: float, note: str) -> dict:
 
 def hysteresis_metrics(
     run: HysteresisRun,
-    rated_torque_Nm: float,
+    rated_torque_Nm: float | None,
     *,
     lost_motion_pct: float = 3.0,
     t1_Nm: float | None = None,
@@ -283,7 +638,8 @@ def hysteresis_metrics(
     """Catalog metrics of one hysteresis run, from the data alone.
 
     Returns ``{NAME: {"value": float, "unit": str[, "note": str]}}`` with (T_r =
-    ``rated_torque_Nm``; θ_up = increasing-torque branch, θ_down = decreasing-torque branch,
+    ``rated_torque_Nm``, or with None the loop's own peak: the smaller of |τ| at the two ends of
+    the torque range its branches share, said in the notes; θ_up = increasing-torque branch, θ_down = decreasing-torque branch,
     θ_mid their mean, all read off :func:`loop_branches`):
 
     - ``stiffness_rated`` (N·m/arcmin): the paper's secant T_r / (θ_up(T_r) − θ_ref), θ_up(T_r)
@@ -310,7 +666,13 @@ def hysteresis_metrics(
     Raises :class:`InputError` when the loop has no full cycle or does not reach ±T_r (a
     shortfall up to 2 % of T_r is bridged by linear extrapolation and said in the note).
     """
-    t_r = float(rated_torque_Nm)
+    lb = branches
+    own_peak = rated_torque_Nm is None
+    if own_peak:
+        lb = loop_branches(run) if lb is None else lb
+        t_r = min(float(lb.torque_Nm[-1]), -float(lb.torque_Nm[0]))
+    else:
+        t_r = float(rated_torque_Nm)
     if not (math.isfinite(t_r) and t_r > 0):
         raise InputError(f"hysteresis run {run.name!r}: rated torque must be > 0 N·m, got {t_r!r}")
     t1 = 0.25 * t_r if t1_Nm is None else float(t1_Nm)
@@ -323,7 +685,7 @@ def hysteresis_metrics(
     if not 0 < lost_motion_pct < 100:
         raise InputError(f"lost_motion_pct must be between 0 and 100, got {lost_motion_pct!r}")
 
-    lb = loop_branches(run) if branches is None else branches
+    lb = loop_branches(run) if lb is None else lb
     g_lo, g_hi = float(lb.torque_Nm[0]), float(lb.torque_Nm[-1])
     if g_hi < (1 - RATED_TOLERANCE) * t_r or g_lo > -(1 - RATED_TOLERANCE) * t_r:
         raise InputError(
@@ -403,6 +765,13 @@ def hysteresis_metrics(
             f"; the loop's common range {grid[0]:.4g}..{grid[-1]:.4g} N·m falls short of ±T_r, "
             f"values at ±T_r extrapolated linearly"
         )
+    scale = ""
+    if own_peak:
+        scale = (
+            f"; no rated torque given: T_r = {t_r:.4g} N·m is the loop's own peak (the torque "
+            f"range its branches share)"
+        )
+        ext += scale
     ref_note = (
         f"secant T_r/(θ(T_r) − θ_ref) at T_r = {t_r:.4g} N·m, θ(T_r) on the increasing-torque "
         f"branch (paper step 5), θ_ref the loop midpoint at zero torque; includes lost motion "
@@ -426,7 +795,7 @@ def hysteresis_metrics(
             stiff(1.0 / compliance),
             "Nm/arcmin",
             f"least-squares slope of the loop midline over {t1:.4g} ≤ |τ| ≤ {t_r:.4g} N·m, "
-            f"separate intercepts per torque sign",
+            f"separate intercepts per torque sign{scale}",
         ),
         "k1": _entry(stiff(k1), "Nm/arcmin", f"{secant_note} 0..T1 = 0..{t1:.4g} N·m"),
         "k2": _entry(stiff(k2), "Nm/arcmin", f"{secant_note} T1..T2 = {t1:.4g}..{t2:.4g} N·m"),
@@ -436,7 +805,7 @@ def hysteresis_metrics(
         "lost_motion": _entry(
             arcmin(lost),
             "arcmin",
-            f"twist between loop midpoints at ±{lost_motion_pct:g} % of T_r (±{x:.4g} N·m)",
+            f"twist between loop midpoints at ±{lost_motion_pct:g} % of T_r (±{x:.4g} N·m){scale}",
         ),
         "backlash": _entry(
             arcmin(backlash),
@@ -451,7 +820,7 @@ def hysteresis_metrics(
         ),
         "peak_torque": _entry(lb.peak_Nm, "Nm", "highest smoothed torque reached"),
         "peak_torque_negative": _entry(lb.trough_Nm, "Nm", "lowest smoothed torque reached"),
-        "rated_torque": _entry(t_r, "Nm", "the T_r these metrics refer to"),
+        "rated_torque": _entry(t_r, "Nm", f"the T_r these metrics refer to{scale}"),
     }
     if from_start is not None:
         start_note = (
@@ -464,3 +833,146 @@ def hysteresis_metrics(
             from_si(from_start, "stiffness", "Nm/deg"), "Nm/deg", "stiffness_rated_from_start in the paper's unit"
         )
     return out
+
+
+# ----------------------------------------------------------------------------- one run, every metric
+
+#: the metrics :func:`hysteresis_metrics` gives from the full-range loop (named in notes when
+#: that loop cannot be read)
+LOOP_METRICS = (
+    "stiffness_rated",
+    "stiffness_rated_negative",
+    "stiffness_elastic",
+    "k1",
+    "k2",
+    "k3",
+    "lost_motion",
+    "backlash",
+    "dissipated_energy",
+)
+#: the metrics of the amplitude classes (:func:`play_from_arrays`, :func:`loading_fit`)
+CLASS_METRICS = ("play", "stiffness_loading", "compliance_loading_pos", "compliance_loading_neg")
+#: a run whose only amplitude class stays below this fraction of the rated torque holds play
+#: ramps, no stiffness ramps: its loading slope is not reported
+STIFFNESS_RAMP_FRACTION = 0.5
+
+
+def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[dict, dict]:
+    """``play``, ``stiffness_loading`` and the loading compliances of one run, with notes for
+    those that cannot be computed."""
+    out: dict[str, dict] = {}
+    notes: dict[str, str] = {}
+    try:
+        classes = cycle_classes(run.time_s, run.torque_Nm, run.angle_rad, name=run.name)
+    except InputError as err:
+        return out, {name: str(err) for name in CLASS_METRICS}
+    small, large = classes.smallest, classes.largest
+    single = len(classes.classes) == 1
+    deg = lambda a: from_si(a, "angle", "deg")  # noqa: E731
+    play = play_of(small)
+    amplitudes = ", ".join(f"±{c.amplitude_Nm:.3g}" for c in classes.classes)
+    play_note = (
+        f"loop width at zero torque (decreasing- minus increasing-torque branch) of the "
+        f"smallest cycles, ±{small.amplitude_Nm:.3g} N·m ({small.n_lower} increasing and "
+        f"{small.n_upper} decreasing ramps averaged; amplitude classes in the run: {amplitudes} "
+        f"N·m); the data authors' play, {deg(play):.4g}°"
+    )
+    if single:
+        play_note += (
+            "; the run has one amplitude class only: if these are large stiffness ramps rather "
+            "than small play ramps, this is their loop width at zero torque (backlash), which "
+            "friction at the larger load widens"
+        )
+    out["play"] = _entry(from_si(play, "angle", "arcmin"), "arcmin", play_note)
+
+    small_only = (
+        single
+        and rated_torque_Nm is not None
+        and large.amplitude_Nm < STIFFNESS_RAMP_FRACTION * float(rated_torque_Nm)
+    )
+    if small_only:
+        why = (
+            f"the run's only cycles reach ±{large.amplitude_Nm:.3g} N·m, under "
+            f"{STIFFNESS_RAMP_FRACTION:g} × the rated torque {float(rated_torque_Nm):.4g} N·m: play "
+            f"ramps, no stiffness ramps to read a loading slope from"
+        )
+        notes.update({name: why for name in CLASS_METRICS[1:]})
+        return out, notes
+    try:
+        fit = loading_fit(large, play, name=run.name)
+    except InputError as err:
+        notes.update({name: str(err) for name in CLASS_METRICS[1:]})
+        return out, notes
+    where = (
+        f"of the largest cycles, ±{large.amplitude_Nm:.3g} N·m ({large.n_lower} increasing and "
+        f"{large.n_upper} decreasing ramps averaged)"
+    )
+    if single:
+        where += "; the run has one amplitude class only, no separate play ramps"
+    span = (
+        f"least squares of angle on torque from where the branch is past half the play "
+        f"(±{deg(play) / 2:.3g}° from the loop midpoint at zero torque) to {LOADING_FIT_TOP:.0%} "
+        f"of the peak"
+    )
+    out["stiffness_loading"] = _entry(
+        from_si(fit.stiffness, "stiffness", "Nm/arcmin"),
+        "Nm/arcmin",
+        f"catalog / data authors' definition: 1 / mean of the + and − loading-branch "
+        f"compliances {where}; {span}",
+    )
+    out["compliance_loading_pos"] = _entry(
+        deg(fit.compliance_pos),
+        "deg/Nm",
+        f"slope of the increasing-torque branch over {fit.start_pos_Nm:.3g}..{fit.end_pos_Nm:.3g} "
+        f"N·m {where}",
+    )
+    out["compliance_loading_neg"] = _entry(
+        deg(fit.compliance_neg),
+        "deg/Nm",
+        f"slope of the decreasing-torque branch over −{fit.end_neg_Nm:.3g}..−{fit.start_neg_Nm:.3g} "
+        f"N·m {where}",
+    )
+    return out, notes
+
+
+def hysteresis_run_metrics(
+    run: HysteresisRun,
+    rated_torque_Nm: float | None,
+    *,
+    lost_motion_pct: float = 3.0,
+    t1_Nm: float | None = None,
+    t2_Nm: float | None = None,
+) -> tuple[dict[str, dict], dict[str, str]]:
+    """Every data-only metric of one hysteresis run that can be computed, and a note for each
+    that cannot: ``(metrics, notes)``, ``metrics`` as :func:`hysteresis_metrics` returns them and
+    ``notes`` ``{NAME: one-line reason}``. Never all-or-nothing.
+
+    ``rated_torque_Nm`` is the reducer's rated torque (None: not given).
+
+    - :func:`hysteresis_metrics` on the full-range loop (:func:`loop_branches`: the largest
+      cycles of a run that also holds small play ramps) at T_r = the rated torque, or the run's
+      nominal peak load ``peak_torque_Nm`` when that is lower or no rated torque is given, or,
+      with neither, at the loop's own peak (said in the notes);
+    - ``play`` from the smallest cycles (:func:`play_from_arrays`);
+    - ``stiffness_loading`` (N·m/arcmin) and ``compliance_loading_pos`` /
+      ``compliance_loading_neg`` (deg/N·m) from the largest cycles (:func:`loading_fit`). A
+      run with one amplitude class below ``STIFFNESS_RAMP_FRACTION`` × the rated torque holds
+      play ramps only: no loading slope, a note instead.
+    """
+    metrics: dict[str, dict] = {}
+    notes: dict[str, str] = {}
+    rated = None if rated_torque_Nm is None else float(rated_torque_Nm)
+    peak = getattr(run, "peak_torque_Nm", None)
+    t_r = rated if peak is None else float(peak) if rated is None else min(rated, float(peak))
+    try:
+        metrics.update(
+            hysteresis_metrics(
+                run, t_r, lost_motion_pct=lost_motion_pct, t1_Nm=t1_Nm, t2_Nm=t2_Nm
+            )
+        )
+    except InputError as err:
+        notes.update({name: str(err) for name in LOOP_METRICS})
+    extra, extra_notes = _class_metrics(run, rated_torque_Nm)
+    metrics.update(extra)
+    notes.update(extra_notes)
+    return metrics, notes
