@@ -29,6 +29,11 @@ def _cmd_metrics(args) -> int:
     result = campaign_metrics(
         campaign, lost_motion_pct=args.lost_motion_pct, t1_Nm=args.t1_Nm, t2_Nm=args.t2_Nm
     )
+    # A metric that cannot be computed is a note of its run; no metric at all is bad input.
+    if not any(run["metrics"] for run in result["runs"]):
+        run = result["runs"][0]
+        name, note = next(iter(run["notes"].items()))
+        raise InputError(f"run {run['name']!r}: no metric could be computed ({name}: {note})")
     if args.json:
         json.dump(result, sys.stdout, indent=2)
         print()
@@ -70,11 +75,12 @@ def _parse_effects(items) -> dict:
 
 
 def _cmd_fit(args) -> int:
-    from .fit import NoiseOptions
+    from .fit import NoiseOptions, check_fittable
     from .io import load_campaign
     from .report import FitOptions, fit_campaign, summary_table, write_fit
 
     campaign = load_campaign(args.campaign)
+    check_fittable(campaign)  # before the model is built from the rated torque
     ar1 = {"auto": None, "on": True, "off": False}[args.ar1]
     out = Path(args.output)
     options = FitOptions(
@@ -100,9 +106,11 @@ def _cmd_fit(args) -> int:
 
 def _cmd_diagnose(args) -> int:
     from .diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
+    from .fit import check_fittable
     from .io import decimate, load_campaign
 
     campaign = decimate(load_campaign(args.campaign), args.decimate)
+    check_fittable(campaign)  # before the model is built from the rated torque
     options = DiagnoseOptions(initial_effects=_parse_effects(args.with_))
     say = _progress("diagnose", quiet=args.quiet)
     result = diagnose(campaign, options, seed=args.seed, progress=say)

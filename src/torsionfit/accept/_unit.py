@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..fit import check_fittable
 from ..report import FitOptions, campaign_model, derived_metrics_for, fit_campaign, summarise
 from ._conformance import conformance, requirement_quantities
 from ._decision import Decision, decide_unit
@@ -30,6 +31,7 @@ class UnitAcceptance:
 def bind_to_campaign(spec: Spec, campaign, options: FitOptions = FitOptions()):
     """(``BoundRequirement``s, ``DerivedMetrics``) of ``spec`` for ``campaign`` fitted with
     ``options`` — checked before any fit, so a wrong metric or unit fails at once."""
+    check_fittable(campaign)  # e.g. no [reducer].rated_torque_Nm: one line, not a TypeError
     derived = derived_metrics_for(campaign, campaign_model(campaign, options), options.lost_motion_pct)
     return bind_requirements(spec, derived.specs, bool(campaign.te_runs)), derived
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._errors import error_line
+from ..fit import check_fittable
 from ..io import load_campaign
 from ..report import finish_fit, prepare_fit, write_fit
 from ._options import BatchOptions
@@ -38,6 +39,7 @@ def error_row(task: UnitTask, err: BaseException, options: BatchOptions) -> dict
 def prepare_unit(task: UnitTask, options: BatchOptions):
     """(campaign, decimated campaign, model, problem) of the unit; InputError on bad input."""
     campaign = load_campaign(task.manifest)
+    check_fittable(campaign)  # e.g. no [reducer].rated_torque_Nm: one line, not a TypeError
     return (campaign,) + prepare_fit(campaign, options.fit_options_of(task.unit))
 
 

@@ -75,6 +75,11 @@ def observed(campaign: Campaign) -> list[np.ndarray]:
 
 def check_fittable(campaign: Campaign) -> None:
     """InputError (one line) for campaigns no fit can use."""
+    if campaign.reducer.rated_torque_Nm is None:
+        raise InputError(
+            "[reducer].rated_torque_Nm is missing: model fits, acceptance and the paper need the "
+            "rated torque as their torque scale (only `torsionfit metrics` works without it)"
+        )
     if not campaign.runs:
         raise InputError("campaign has no runs to fit")
     for r in campaign.runs:

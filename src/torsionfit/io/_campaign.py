@@ -8,8 +8,11 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Reducer:
+    """The unit under test. ``rated_torque_Nm`` is optional: the data-only metrics then read
+    their torque scale from the data; model fits, acceptance and the paper need it."""
+
     name: str
-    rated_torque_Nm: float
+    rated_torque_Nm: float | None = None
     ratio: float | None = None
     max_speed_rpm: float | None = None
 

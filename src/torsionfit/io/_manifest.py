@@ -168,7 +168,9 @@ def _reducer(table: dict, manifest: Path, shown: str) -> Reducer:
     return Reducer(
         # Without a name the manifest's own name identifies the unit.
         name=_text(table, "name", where, default=manifest.stem),
-        rated_torque_Nm=_number(table, "rated_torque_Nm", where, required=True, positive=True),
+        # Optional: data-only metrics read their torque scale from the data without it; the
+        # fit, accept and paper entry points say they need it (fit.check_fittable).
+        rated_torque_Nm=_number(table, "rated_torque_Nm", where, positive=True),
         ratio=_number(table, "ratio", where, positive=True),
         max_speed_rpm=_number(table, "max_speed_rpm", where, positive=True),
     )

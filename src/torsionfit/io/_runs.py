@@ -78,7 +78,8 @@ def _hysteresis(spec, reducer, table, si, time, found, where) -> HysteresisRun:
     torque = si("torque")
     peak = spec.peak_torque_Nm if spec.peak_torque_Nm is not None else reducer.rated_torque_Nm
     reached = float(np.max(np.abs(torque)))
-    if reached < PEAK_FRACTION * peak:
+    # Without a nominal load (no peak_torque_Nm, no rated_torque_Nm) there is nothing to reach.
+    if peak is not None and reached < PEAK_FRACTION * peak:
         origin = "peak_torque_Nm" if spec.peak_torque_Nm is not None else "rated_torque_Nm"
         raise InputError(
             f"{where}: column {found['torque'].name!r} reaches only |torque| = {reached:.4g} N·m, "
