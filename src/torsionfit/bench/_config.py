@@ -34,6 +34,8 @@ class HysteresisSpec:
     cycles: int = 1  # 1 = the five-step protocol; each extra cycle repeats steps 2–5
     dwell_s: float = 0.0  # hold at each turning point
     position_deg: float = 180.0  # output position of the locked loop
+    play_cycles: int = 0  # small cycles 0→+x→−x→0 before the stiffness ramps ("play ramps")
+    play_torque_Nm: float | None = None  # x of the play ramps (default 5 % of the rated torque)
 
 
 @dataclass(frozen=True)
@@ -144,14 +146,24 @@ def load_bench(path) -> Bench:
             raise InputError(f"{where}: duplicate run name {name!r}")
         names.add(name)
         if kind == "hysteresis":
-            _check_keys(r, {"name", "kind", "loading_rate_Nm_per_s", "peak_torque_Nm", "cycles", "dwell_s", "position_deg"}, where)
+            _check_keys(r, {"name", "kind", "loading_rate_Nm_per_s", "peak_torque_Nm", "cycles", "dwell_s", "position_deg",
+                            "play_cycles", "play_torque_Nm"}, where)
+            play_cycles = _num(r, "play_cycles", where, 0.0)
+            if play_cycles < 0 or play_cycles != int(play_cycles):
+                raise InputError(f"{where}.play_cycles: expected a whole number ≥ 0, got {r['play_cycles']!r}")
+            peak = _num(r, "peak_torque_Nm", where, reducer.rated_torque_Nm, positive=True)
+            play_torque = _num(r, "play_torque_Nm", where, 0.05 * reducer.rated_torque_Nm, positive=True)
+            if play_cycles and play_torque >= peak:
+                raise InputError(f"{where}.play_torque_Nm: the play ramps ({play_torque:g} N·m) must stay below the peak ({peak:g} N·m)")
             runs.append(HysteresisSpec(
                 name=name,
                 loading_rate_Nm_per_s=_num(r, "loading_rate_Nm_per_s", where, positive=True, required=True),
-                peak_torque_Nm=_num(r, "peak_torque_Nm", where, reducer.rated_torque_Nm, positive=True),
+                peak_torque_Nm=peak,
                 cycles=int(_num(r, "cycles", where, 1, positive=True)),
                 dwell_s=_num(r, "dwell_s", where, 0.0),
                 position_deg=_num(r, "position_deg", where, 180.0),
+                play_cycles=int(play_cycles),
+                play_torque_Nm=play_torque if play_cycles else None,
             ))
         elif kind == "transmission_error":
             _check_keys(r, {"name", "kind", "speed_rpm", "torque_Nm", "direction", "revolutions"}, where)

@@ -27,10 +27,15 @@ class Simulation:
     measured_torque_true: list  # per run: the true (noise-free) torque driving the model, N·m
 
 
-def five_step_protocol(peak_Nm, rate_Nm_per_s, sample_rate_Hz, cycles=1, dwell_s=0.0):
+def five_step_protocol(peak_Nm, rate_Nm_per_s, sample_rate_Hz, cycles=1, dwell_s=0.0, play_cycles=0, play_torque_Nm=None):
     """Time and torque of the paper's protocol: 0→+P→0→−P→0→+P (steps 1–5), with
-    ``cycles − 1`` repeats of steps 2–5 and an optional dwell at each peak."""
-    levels = [0.0, peak_Nm, 0.0, -peak_Nm, 0.0, peak_Nm]
+    ``cycles − 1`` repeats of steps 2–5 and an optional dwell at each peak. ``play_cycles``
+    small cycles 0→+x→−x→0 (x = ``play_torque_Nm``) come first, as a bench runs its play
+    ramps before the stiffness ramps; the dwell applies to the peaks ±P only."""
+    levels = [0.0]
+    for _ in range(play_cycles):
+        levels += [play_torque_Nm, -play_torque_Nm, 0.0]
+    levels += [peak_Nm, 0.0, -peak_Nm, 0.0, peak_Nm]
     for _ in range(cycles - 1):
         levels += [0.0, -peak_Nm, 0.0, peak_Nm]
     knots_t, knots_tau, t = [0.0], [0.0], 0.0
@@ -109,7 +114,8 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
     inputs, drives = [], []
     for spec in bench.runs:
         if isinstance(spec, HysteresisSpec):
-            t, tau = five_step_protocol(spec.peak_torque_Nm, spec.loading_rate_Nm_per_s, ins.sample_rate_Hz, spec.cycles, spec.dwell_s)
+            t, tau = five_step_protocol(spec.peak_torque_Nm, spec.loading_rate_Nm_per_s, ins.sample_rate_Hz, spec.cycles,
+                                       spec.dwell_s, spec.play_cycles, spec.play_torque_Nm)
             inputs.append(m.hysteresis_input(t, tau + offset))  # the sensor reads true torque + offset
             drives.append(tau)
         else:
