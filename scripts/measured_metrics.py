@@ -1,0 +1,229 @@
+"""Data-only play and loading stiffness of the 21 measured cycloidal files — REAL data from
+../shared/data/cycloidal-jv (JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0) — next to
+the data authors' own numbers (the table of that folder's README).
+
+Every file is read as ONE whole-file run (play ramps and stiffness ramps together, no
+[runs.select]) from a manifest written to a temporary folder, without a rated torque: the
+data-only metrics read their torque scale from the data. As the authors do, the three rotor
+positions of a configuration are averaged: the play, and the + and − compliances separately.
+
+    .venv/bin/python scripts/measured_metrics.py [-o docs/measured/metrics-vs-authors.md]
+"""
+
+import argparse
+import re
+import sys
+import tempfile
+from pathlib import Path
+
+import torsionfit  # noqa: F401
+from torsionfit.io import load_campaign
+from torsionfit.metrics import campaign_metrics
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data" / "cycloidal-jv"
+POSITIONS = ("pos1", "pos5", "pos6")
+#: the goal: data-only play and stiffness_loading within this relative difference of the authors'
+TOLERANCE = 0.10
+CREDIT = (
+    "REAL measured data from the public repository JelmerV/Anti-Backlash-Cycloidal-Actuator, "
+    "licensed CC BY-SA 4.0; the numbers derived here carry the same licence."
+)
+
+MANIFEST = """label = "REAL MEASURED DATA (not synthetic): {folder}/{stem}, whole file; {credit}"
+
+[reducer]
+name = "jv-{folder}-{stem}"
+
+[instrument]
+encoder_resolution_arcsec = 19.775390625
+
+[[runs]]
+name = "{stem}"
+kind = "hysteresis"
+file = {file}
+
+[runs.columns]
+time = "TIME"
+torque = "TORQUE"
+angle = "POSITION"
+
+[runs.units]
+angle = "rev"
+"""
+
+
+def authors_numbers(readme: Path = DATA / "README.md") -> dict[tuple[str, str], dict]:
+    """The authors' table of the data README: ``{(folder, state): {"play_deg", "compliance",
+    "compliance_pos", "compliance_neg"}}`` (compliances in deg/N·m), in table order."""
+    row = re.compile(
+        r"^\|[^|]+\|\s*([\w-]+)\s*/\s*([\w-]+)\s*\|\s*([\d.]+)\s*\|\s*([\d.]+)\s*\(([\d.]+)\s*/\s*([\d.]+)\)\s*\|"
+    )
+    out = {}
+    for line in readme.read_text(encoding="utf-8").splitlines():
+        m = row.match(line.strip())
+        if m:
+            play, mean, pos, neg = map(float, m.groups()[2:])
+            out[(m[1], m[2])] = {"play_deg": play, "compliance": mean, "compliance_pos": pos, "compliance_neg": neg}
+    return out
+
+
+def file_metrics(folder: str, stem: str, workdir: Path) -> dict:
+    """``torsionfit metrics`` of one whole file: ``{"metrics", "notes"}`` of its one run."""
+    path = DATA / folder / f"{stem}.csv.gz"
+    manifest = workdir / folder / stem / "campaign.toml"
+    manifest.parent.mkdir(parents=True, exist_ok=True)
+    manifest.write_text(
+        MANIFEST.format(folder=folder, stem=stem, credit=CREDIT, file=f'"{path.as_posix()}"'), encoding="utf-8"
+    )
+    (run,) = campaign_metrics(load_campaign(manifest))["runs"]
+    return run
+
+
+def measure(configurations) -> dict[tuple[str, str], dict]:
+    """Per configuration: the three positions' runs and their averages (play in deg, + and −
+    compliances in deg/N·m averaged separately, their mean and the loading stiffness
+    1/mean in N·m/arcmin)."""
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for folder, state in configurations:
+            runs = {pos: file_metrics(folder, f"{state}-{pos}", Path(tmp)) for pos in POSITIONS}
+            row = {"runs": runs, "notes": {}}
+            for key, metric, scale in (
+                ("play_deg", "play", 1 / 60.0),
+                ("compliance_pos", "compliance_loading_pos", 1.0),
+                ("compliance_neg", "compliance_loading_neg", 1.0),
+            ):
+                missing = [pos for pos, r in runs.items() if metric not in r["metrics"]]
+                if missing:
+                    row[key] = None
+                    row["notes"][key] = "; ".join(f"{pos}: {runs[pos]['notes'].get(metric, '?')}" for pos in missing)
+                    continue
+                row[key] = sum(r["metrics"][metric]["value"] for r in runs.values()) * scale / len(runs)
+            if row["compliance_pos"] is not None and row["compliance_neg"] is not None:
+                row["compliance"] = 0.5 * (row["compliance_pos"] + row["compliance_neg"])
+                row["stiffness_loading"] = 1.0 / (row["compliance"] * 60.0)  # N·m/deg → N·m/arcmin
+            else:
+                row["compliance"] = row["stiffness_loading"] = None
+            out[(folder, state)] = row
+    return out
+
+
+def _rel(ours, theirs):
+    return None if ours is None else ours / theirs - 1.0
+
+
+def _pct(x):
+    return "—" if x is None else f"{100 * x:+.1f} %"
+
+
+def _num(x, fmt):
+    return "—" if x is None else format(x, fmt)
+
+
+def comparison(authors: dict, ours: dict) -> list[dict]:
+    """One row per configuration: our values, theirs, relative differences, within TOLERANCE."""
+    rows = []
+    for key, a in authors.items():
+        o = ours[key]
+        d_play = _rel(o["play_deg"], a["play_deg"])
+        # stiffness = 1/compliance: its relative difference is theirs/ours − 1 of the compliance
+        d_stiff = None if o["compliance"] is None else a["compliance"] / o["compliance"] - 1.0
+        rows.append({
+            "configuration": f"{key[0]} / {key[1]}",
+            "key": key,
+            "ours": o,
+            "authors": a,
+            "d_play": d_play,
+            "d_compliance": _rel(o["compliance"], a["compliance"]),
+            "d_pos": _rel(o["compliance_pos"], a["compliance_pos"]),
+            "d_neg": _rel(o["compliance_neg"], a["compliance_neg"]),
+            "d_stiffness": d_stiff,
+            "play_ok": d_play is not None and abs(d_play) <= TOLERANCE,
+            "stiffness_ok": d_stiff is not None and abs(d_stiff) <= TOLERANCE,
+        })
+    return rows
+
+
+def markdown(rows: list[dict]) -> str:
+    lines = [
+        "# Data-only play and loading stiffness against the data authors' numbers",
+        "",
+        CREDIT,
+        "",
+        "Made by `scripts/measured_metrics.py`: each of the 21 files of `shared/data/cycloidal-jv` is one "
+        "whole-file run (play ramps and stiffness ramps together), no rated torque given. "
+        "`play` is the loop width at zero torque of the smallest cycles (the ±4 N·m play ramps); "
+        "`stiffness_loading` is 1 / mean of the + and − loading-branch compliances of the largest "
+        "cycles (the ±25 or ±40 N·m stiffness ramps), each a least-squares slope of angle on torque from "
+        "where the branch is past half the play (from the loop midpoint at zero torque) to 90 % of the "
+        "peak. Positions pos1, pos5 and pos6 are averaged as the authors do: the play, and the + and − "
+        "compliances separately. Authors' numbers: the table of the data README. "
+        f"Goal: within {100 * TOLERANCE:.0f} %.",
+        "",
+        "| configuration | play ours [°] | play authors [°] | Δ play | compliance ours [°/N·m] (+ / −) | "
+        "compliance authors [°/N·m] (+ / −) | Δ compliance (Δ+ / Δ−) | stiffness_loading ours [N·m/arcmin] | "
+        "authors' 1/compliance [N·m/arcmin] | Δ stiffness | within goal |",
+        "| --- | ---: | ---: | ---: | --- | --- | --- | ---: | ---: | ---: | --- |",
+    ]
+    for r in rows:
+        o, a = r["ours"], r["authors"]
+        ok = "play " + ("yes" if r["play_ok"] else "NO") + ", stiffness " + ("yes" if r["stiffness_ok"] else "NO")
+        lines.append(
+            f"| {r['configuration']} | {_num(o['play_deg'], '.3f')} | {a['play_deg']:.3f} | {_pct(r['d_play'])} | "
+            f"{_num(o['compliance'], '.4f')} ({_num(o['compliance_pos'], '.4f')} / {_num(o['compliance_neg'], '.4f')}) | "
+            f"{a['compliance']:.3f} ({a['compliance_pos']:.3f} / {a['compliance_neg']:.3f}) | "
+            f"{_pct(r['d_compliance'])} ({_pct(r['d_pos'])} / {_pct(r['d_neg'])}) | "
+            f"{_num(o['stiffness_loading'], '.4f')} | {1 / (60 * a['compliance']):.4f} | {_pct(r['d_stiffness'])} | {ok} |"
+        )
+    lines += [
+        "",
+        "Per file (whole-file runs; play in °, compliances in °/N·m):",
+        "",
+        "| file | play | compliance + | compliance − | stiffness_loading [N·m/arcmin] | amplitude classes |",
+        "| --- | ---: | ---: | ---: | ---: | --- |",
+    ]
+    for r in rows:
+        folder, state = r["key"]
+        for pos, run in r["ours"]["runs"].items():
+            m = run["metrics"]
+
+            def get(name, scale=1.0, fmt=".4f"):
+                return _num(m[name]["value"] * scale, fmt) if name in m else "—"
+
+            classes = re.search(r"amplitude classes in the run: ([^;)]*N·m)", m.get("play", {}).get("note", ""))
+            lines.append(
+                f"| {folder}/{state}-{pos} | {get('play', 1 / 60, '.3f')} | {get('compliance_loading_pos')} | "
+                f"{get('compliance_loading_neg')} | {get('stiffness_loading')} | {classes[1] if classes else '—'} |"
+            )
+    notes = [(r["configuration"], k, v) for r in rows for k, v in r["ours"]["notes"].items()]
+    if notes:
+        lines += ["", "Not computed:", ""] + [f"- {c}, {k}: {v}" for c, k, v in notes]
+    missed = [r["configuration"] for r in rows if not (r["play_ok"] and r["stiffness_ok"])]
+    lines += [
+        "",
+        ("All 7 configurations are within the goal." if not missed
+         else "Outside the goal: " + ", ".join(missed) + "."),
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("-o", "--output", type=Path, default=None, help="also write the Markdown table here")
+    args = parser.parse_args(argv)
+    if not DATA.is_dir():
+        print(f"{DATA} is absent: nothing to compare")
+        return 0
+    authors = authors_numbers()
+    text = markdown(comparison(authors, measure(authors)))
+    print(text, end="")
+    if args.output is not None:
+        args.output.parent.mkdir(parents=True, exist_ok=True)
+        args.output.write_text(text, encoding="utf-8")
+        print(f"wrote {args.output}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
