@@ -496,7 +496,7 @@ def play_of(cls: AmplitudeClass) -> float:
 def loading_fit(
     cls: AmplitudeClass, play_rad: float, *, name: str = "run", top: float = LOADING_FIT_TOP
 ) -> LoadingFit:
-    """Loading-branch compliances of ``cls`` beyond the play (see :func:`loading_compliance_from_arrays`).
+    """Loading-branch compliances of ``cls`` beyond the play (:func:`loading_compliance_from_arrays`).
 
     The loading branches are the increasing-torque branch for τ > 0 and the decreasing-torque
     branch for τ < 0 (|τ| growing away from zero). With θ_c = θ − θ_mid(0), θ_mid(0) the loop
@@ -524,12 +524,17 @@ def loading_fit(
         inside = np.flatnonzero(th < half)
         first = 0 if inside.size == 0 else inside[-1] + 1
         if peak <= 0 or first >= t.size or t[first] > LOADING_FIT_MAX_START * peak:
-            reached = "never" if first >= t.size else f"only at {t[first]:.3g} N·m"
+            reached = (
+                f"never gets past half the play ({half * 180 / math.pi:.3g}°) below "
+                f"{top:g} × its peak {peak:.3g} N·m"
+                if first >= t.size
+                else f"gets past half the play ({half * 180 / math.pi:.3g}°) only at "
+                f"{t[first]:.3g} N·m, above {LOADING_FIT_MAX_START:g} × its peak {peak:.3g} N·m"
+            )
             raise InputError(
-                f"hysteresis run {name!r}: the {where} loading branch of the ±{cls.amplitude_Nm:.3g} N·m "
-                f"cycles gets past half the play ({half * 180 / math.pi:.3g}°) {reached}, beyond "
-                f"{LOADING_FIT_MAX_START:g} × its peak {peak:.3g} N·m; expected a loading range "
-                f"beyond the play for a slope"
+                f"hysteresis run {name!r}: the {where} loading branch of the "
+                f"±{cls.amplitude_Nm:.3g} N·m cycles {reached}; expected a loading range beyond "
+                f"the play for a slope"
             )
         t, th = t[first:], th[first:]
         if t.size < 3:
@@ -639,8 +644,8 @@ def hysteresis_metrics(
 
     Returns ``{NAME: {"value": float, "unit": str[, "note": str]}}`` with (T_r =
     ``rated_torque_Nm``, or with None the loop's own peak: the smaller of |τ| at the two ends of
-    the torque range its branches share, said in the notes; θ_up = increasing-torque branch, θ_down = decreasing-torque branch,
-    θ_mid their mean, all read off :func:`loop_branches`):
+    the torque range its branches share, said in the notes; θ_up = increasing-torque branch,
+    θ_down = decreasing-torque branch, θ_mid their mean, all read off :func:`loop_branches`):
 
     - ``stiffness_rated`` (N·m/arcmin): the paper's secant T_r / (θ_up(T_r) − θ_ref), θ_up(T_r)
       the angle at +T_r on the increasing-torque branch (the paper's θ_r, step 5) and θ_ref the
