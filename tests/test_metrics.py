@@ -783,3 +783,11 @@ def test_measured_play_and_loading_stiffness_match_the_data_authors(key):
     assert abs(row["d_play"]) <= 0.10, row["d_play"]
     assert abs(row["d_stiffness"]) <= 0.10, row["d_stiffness"]
     assert row["ours"]["notes"] == {}
+
+
+def test_play_ramps_of_five_percent_of_the_peak_are_a_class_of_their_own():
+    # The virtual bench's default play ramps: ±5 % of the stiffness ramps' load.
+    time, tau = bench_protocol(small=0.05 * LARGE)
+    classes = cycle_classes(time, tau, bench_angle(tau))
+    assert [round(c.amplitude_Nm, 1) for c in classes.classes] == [2.0, PLATEAU]
+    assert play_from_arrays(time, tau, bench_angle(tau)) == pytest.approx(EXPECTED_PLAY, rel=1e-3)

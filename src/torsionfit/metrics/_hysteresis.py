@@ -249,8 +249,9 @@ def loop_branches(
 
 #: turning points for the amplitude classes: a retreat larger than this fraction of the run's
 #: torque range (or 8 σ of the noise left in the smoothed torque), so small ramps are split too
-#: (play ramps of ±4 N·m among stiffness ramps of ±40 N·m retreat by 8 N·m, 10 % of the range)
-CYCLE_REVERSAL_FRACTION = 0.05
+#: (play ramps of amplitude a among stiffness ramps of ±L retreat by 2a, a/L of the range: seen
+#: down to a = 2 % of L; the relative rule below does the real work against wiggles)
+CYCLE_REVERSAL_FRACTION = 0.02
 #: ... and a retreat larger than this fraction of the ramp it ends (its excursion from the
 #: previous turning point): a controller's torque oscillation inside a ramp is no reversal.
 #: The price: small ramps of amplitude a right after a ramp from a large peak L are seen only
@@ -916,7 +917,7 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
         where += "; the run has one amplitude class only, no separate play ramps"
     span = (
         f"least squares of angle on torque from where the branch is past half the play "
-        f"(±{deg(play) / 2:.3g}° from the loop midpoint at zero torque) to {LOADING_FIT_TOP:.0%} "
+        f"(±{deg(play) / 2:.3g}° from the loop midpoint at zero torque) to {100 * LOADING_FIT_TOP:g} % "
         f"of the peak"
     )
     out["stiffness_loading"] = _entry(
