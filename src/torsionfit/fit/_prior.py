@@ -8,7 +8,9 @@ import math
 
 import numpy as np
 
+from .._errors import InputError
 from ..io import Campaign, HysteresisRun
+from ..metrics._hysteresis import cycle_classes
 
 
 def first_look_stiffness(campaign: Campaign) -> float:
@@ -34,8 +36,41 @@ def first_look_stiffness(campaign: Campaign) -> float:
     return campaign.reducer.rated_torque_Nm / math.radians(1.0)
 
 
+def first_look_loop(campaign: Campaign) -> tuple[float, float] | None:
+    """(play in rad, friction torque in N·m) read off the hysteresis runs' cycles, or None.
+
+    The play is the loop width at zero torque of the smallest cycles: the gap plus what
+    friction holds open there, so the gap cannot be much wider. The friction level is half the
+    largest cycles' width in *torque* at the loop's mid angle: with a gap and a spring in
+    series, friction is what shifts the two branches apart in torque, so it cannot be much
+    larger."""
+    plays, widths = [], []
+    for run in campaign.hysteresis_runs:
+        try:
+            classes = cycle_classes(run.time_s, run.torque_Nm, run.angle_rad, name=run.name)
+        except InputError:
+            continue
+        small, large = classes.smallest, classes.largest
+        i0 = int(np.argmin(np.abs(small.torque_Nm)))
+        plays.append(float(small.upper_rad[i0] - small.lower_rad[i0]))
+        j0 = int(np.argmin(np.abs(large.torque_Nm)))
+        mid = 0.5 * (large.upper_rad[j0] + large.lower_rad[j0])
+        # torque where each branch passes the mid angle (branches rise with torque)
+        at = [float(np.interp(mid, np.maximum.accumulate(b), large.torque_Nm)) for b in (large.upper_rad, large.lower_rad)]
+        widths.append(at[1] - at[0])
+    if not plays or not all(np.isfinite(plays + widths)):
+        return None
+    play, width = float(np.median(plays)), float(np.median(widths))
+    if play <= 0 or width <= 0:
+        return None
+    return play, 0.5 * width
+
+
 def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float]]:
-    """(mean_u, sd_u) for each non-linear model parameter."""
+    """(mean_u, sd_u) for each non-linear model parameter. Friction level and gap are centred
+    on what the loops' cycles allow (:func:`first_look_loop`) when the campaign has them: a
+    prior that lets friction exceed the loop's torque width, or the gap swallow the play, lets
+    the two trade places on loops that are not exactly the model's."""
     rated = campaign.reducer.rated_torque_Nm
     k0 = first_look_stiffness(campaign)
     twist0 = rated / k0  # rated twist, rad
@@ -63,6 +98,11 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "torque_offset": (0.0, 0.05 * rated),
         "friction_start": (0.0, 1.0),  # tanh-normal: z0 anywhere in (−1, 1)
     }
+    loop = first_look_loop(campaign) if any(p.name in ("gap", "friction_torque") for p in parameters) else None
+    if loop is not None:
+        play, friction = loop
+        table["gap"] = (log(play), 1.0)
+        table["friction_torque"] = (log(friction), 1.0)
     out = {}
     for p in parameters:
         if p.linear:

@@ -86,7 +86,8 @@ class MaxwellSlipFriction(AbstractFriction):
 
     Element k carries the mesh share ``p_k``; it sticks while ``|τ − p_k| ≤ R_k`` and slides
     at that limit otherwise (exact per sample: ``p_k ← clamp(p_k, τ − R_k, τ + R_k)``), with
-    ``R_k = r_k + μ|τ|``. The break-away levels ``r_k = T_f·exp(s·q_k − s²/2)`` sit at the
+    ``R_k = r_k·(1 + μ|τ|/T_f)`` (every level grows in proportion with the load; mean
+    ``T_f + μ|τ|``). The break-away levels ``r_k = T_f·exp(s·q_k − s²/2)`` sit at the
     quantiles ``q_k`` of a standard normal: a log-normal break-away density of median
     ``T_f·e^(−s²/2)`` and mean ≈ ``T_f`` (the sliding friction level), spread ``s``. The
     friction torque is ``τ − mean_k p_k``. One element with s → 0 is ideal Coulomb friction.
@@ -122,7 +123,11 @@ class MaxwellSlipFriction(AbstractFriction):
     def mesh_shares(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None):
         """Each element's mesh share p_k per sample: (N, n_elements), N·m."""
         tau = jnp.asarray(torque_Nm)
-        limit = self.breakaway_levels(params)[None, :] + self._load_coefficient(params) * jnp.abs(tau)[:, None]
+        # every element's level grows in proportion with the load (each contact's friction
+        # scales with its normal load), so the break-away spread — gradual pre-sliding — holds
+        # at every load; the mean level is T_f + μ|τ|, as for Dahl friction
+        scale = 1.0 + self._load_coefficient(params) * jnp.abs(tau) / params["friction_torque"]
+        limit = self.breakaway_levels(params)[None, :] * scale[:, None]
         z0 = self.initial_state if initial_state is None else initial_state
         p0 = tau[0] - z0 * limit[0]
         p = play_scan(tau[1:, None] - limit[1:], tau[1:, None] + limit[1:], p0, method)

@@ -4,6 +4,12 @@ and the metrics are read off exactly. Vectorised over draws.
 
 The loop is the fitted model's, at the slowest loading rate of the campaign (or T_r/100 per
 second without hysteresis runs), started at rest (friction state 0, no offset, no drift).
+
+``play`` and ``stiffness_loading`` are read, with the data-only definitions
+(``metrics.play_from_arrays``, ``metrics.loading_compliance_from_arrays``), off a second
+noise-free record shaped like the measured one: small cycles at the amplitude of the data's
+smallest cycles (its play ramps) followed by large cycles at the amplitude of its largest
+(its stiffness ramps), started at rest.
 """
 
 import dataclasses
@@ -16,7 +22,9 @@ import numpy as np
 
 from .. import model as m
 from .._chunks import CHUNK, map_chunks
+from .._errors import InputError
 from ..io import Campaign
+from ..metrics._hysteresis import LOADING_FIT_TOP, cycle_classes
 from ..units import ANGLE_UNITS, SPEED_UNITS, STIFFNESS_UNITS
 
 ARCMIN = ANGLE_UNITS["arcmin"]
@@ -70,6 +78,63 @@ def _protocol(rated, rate, samples_per_step: int, lost_motion_fraction: float) -
     return _Protocol(jnp.asarray(t), jnp.asarray(tau), 2 * k, 3 * k, 4 * k, 5 * k)
 
 
+#: samples per leg (peak to peak) of the play and stiffness cycles of the bench record; cycles
+#: of each: the metrics read the last one, the ones before settle the friction state
+BENCH_SAMPLES_PER_LEG = 400
+BENCH_SMALL_CYCLES = 3
+BENCH_LARGE_CYCLES = 2
+
+
+class _BenchRecord(eqx.Module):
+    """Play cycles then stiffness cycles, as a bench runs them: 0 → +a → −a … then 0 → +A →
+    −A …, each leg through τ = 0 exactly. ``small``/``large``: (down start, up start, up end)
+    sample indices of the last cycle of each (down: +peak → −peak, up: −peak → +peak)."""
+
+    time_s: jnp.ndarray
+    torque_Nm: jnp.ndarray
+    small: tuple = eqx.field(static=True)
+    large: tuple = eqx.field(static=True)
+
+
+def _bench_record(small_Nm: float, large_Nm: float, rate: float) -> _BenchRecord:
+    n = BENCH_SAMPLES_PER_LEG  # even: a peak-to-peak leg has τ = 0 as its middle sample
+    knots = [0.0]
+    for amp, cycles in ((small_Nm, BENCH_SMALL_CYCLES), (large_Nm, BENCH_LARGE_CYCLES)):
+        if knots[-1] != 0.0:
+            knots.append(0.0)
+        knots += [amp, -amp] * cycles + [amp]
+    legs = [np.linspace(a, b, n + 1 if abs(a) == abs(b) and a else n // 2 + 1) for a, b in zip(knots[:-1], knots[1:])]
+    tau = np.concatenate([legs[0]] + [leg[1:] for leg in legs[1:]])
+    t = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(tau)) / rate)])
+    ends = np.cumsum([len(leg) - 1 for leg in legs])  # index of each knot after the first
+    small_end = 1 + 2 * BENCH_SMALL_CYCLES  # knots: 0, a, −a, …, a
+    last = len(knots) - 1
+    small = (int(ends[small_end - 3]), int(ends[small_end - 2]), int(ends[small_end - 1]))
+    large = (int(ends[last - 3]), int(ends[last - 2]), int(ends[last - 1]))
+    return _BenchRecord(jnp.asarray(t), jnp.asarray(tau), small, large)
+
+
+def _loop_at_zero(theta, tau, idx):
+    """(down, up) angle at τ = 0 of the cycle with (down start, up start, up end) ``idx``."""
+    d0, u0, u1 = idx
+    return theta[(d0 + u0) // 2], theta[(u0 + u1) // 2]
+
+
+def _loading_compliance(theta, tau, idx, centre, play, peak):
+    """Least-squares dθ/dτ of the loading parts of one cycle (up branch at τ > 0, down branch
+    at τ < 0) beyond half the play from the loop centre, up to 90 % of the peak: (pos, neg)."""
+    d0, u0, u1 = idx
+
+    def slope(t, y):
+        w = ((jnp.abs(y - centre) > 0.5 * play) & (jnp.abs(t) <= LOADING_FIT_TOP * peak) & (jnp.abs(t) > 0)).astype(t.dtype)
+        sw = jnp.maximum(jnp.sum(w), 1.0)
+        tm, ym = jnp.sum(w * t) / sw, jnp.sum(w * y) / sw
+        return jnp.sum(w * (t - tm) * (y - ym)) / jnp.maximum(jnp.sum(w * (t - tm) ** 2), 1e-300)
+
+    mid_up, mid_dn = (u0 + u1) // 2, (d0 + u0) // 2
+    return slope(tau[mid_up:u1 + 1], theta[mid_up:u1 + 1]), slope(tau[mid_dn:u0 + 1], theta[mid_dn:u0 + 1])
+
+
 #: linear parameters the metrics read: the reducer's kinematic error is a property of the unit;
 #: the others (per-run offsets, drift) belong to one measured run and are zero in the metrics' runs
 METRIC_LINEAR = ("kin_cos", "kin_sin")
@@ -98,6 +163,7 @@ class DerivedMetrics(eqx.Module):
     te_model: m.CampaignModel | None
     protocol: _Protocol
     te_inputs: list
+    bench: _BenchRecord | None
     specs: tuple = eqx.field(static=True)
     # arrays, not static fields: a static value is part of the compile key, and a batch of units
     # with other rated torques would compile the metrics anew for each
@@ -139,12 +205,27 @@ class DerivedMetrics(eqx.Module):
             values["gap"] / ARCMIN,
             values["friction_torque"],
         ] + [q / ARCMIN for q in parts]
+        if self.bench is not None:
+            out += self._bench_metrics(params)
         if self.te_model is not None:
             for inp in self.te_inputs:
                 te = self._te_twist(values, inp)
                 out.append(jnp.abs(inp.torque_Nm) / jnp.abs(te[0]) / NM_PER_ARCMIN)  # at 180°
                 out.append(jnp.abs(inp.torque_Nm) / jnp.abs(jnp.mean(te[1:])) / NM_PER_ARCMIN)  # revolution mean
         return jnp.stack([jnp.asarray(v, float) for v in out])
+
+    def _bench_metrics(self, params) -> list:
+        """``play`` (arcmin), ``stiffness_loading`` (N·m/arcmin) and the two loading
+        compliances (deg/N·m) off the bench record, with the data-only definitions."""
+        b = self.bench
+        theta = self.hyst_model.predict(params, [m.hysteresis_input(b.time_s, b.torque_Nm)])[0]
+        down, up = _loop_at_zero(theta, b.torque_Nm, b.small)
+        play = down - up
+        centre = 0.5 * sum(_loop_at_zero(theta, b.torque_Nm, b.large))
+        peak = jnp.max(jnp.abs(b.torque_Nm))
+        c_pos, c_neg = _loading_compliance(theta, b.torque_Nm, b.large, centre, play, peak)
+        deg = ANGLE_UNITS["deg"]
+        return [play / ARCMIN, 2.0 / (c_pos + c_neg) / NM_PER_ARCMIN, c_pos / deg, c_neg / deg]
 
     def reads_linear(self) -> bool:
         """Whether the metrics read linear parameters (the kinematic harmonics of TE runs): only
@@ -219,6 +300,19 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
     ]
     if model.creep is not None:
         specs.append(MetricSpec("twist_creep_at_rated", "arcmin", "creep part of the angle at T_r (end of step 5)"))
+    bench = None
+    amplitudes = _data_amplitudes(campaign)
+    if amplitudes is not None:
+        small, large = amplitudes
+        bench = _bench_record(small, large, rate)
+        record = f"the model's record of {BENCH_SMALL_CYCLES} cycles at ±{small:.3g} N·m then {BENCH_LARGE_CYCLES} at ±{large:.3g} N·m (the data's smallest and largest cycles)"
+        specs += [
+            MetricSpec("play", "arcmin", f"loop width at zero torque of the smallest cycles: {record}"),
+            MetricSpec("stiffness_loading", "Nm/arcmin", "1 / mean of the + and − loading-branch compliances of the largest cycles, beyond half the play from the loop centre up to 90 % of the peak (the data authors' definition), "
+                       + record),
+            MetricSpec("compliance_loading_pos", "deg/Nm", "loading compliance of the + side (increasing torque, τ > 0), as stiffness_loading"),
+            MetricSpec("compliance_loading_neg", "deg/Nm", "loading compliance of the − side (decreasing torque, τ < 0), as stiffness_loading"),
+        ]
     te_model, te_inputs = None, []
     if campaign.te_runs:
         te_model = dataclasses.replace(model, run_kinds=("transmission_error",))
@@ -231,5 +325,21 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
             specs.append(MetricSpec(f"kt[{run.name}]", "Nm/arcmin", "K_t = T / revolution-mean TE, model", cond))
     steps = SAMPLES_PER_STEP if model.creep is None else SAMPLES_PER_STEP_CREEP
     protocol = _protocol(rated, rate, steps, lost_motion_pct / 100.0)
-    return DerivedMetrics(hyst_model, te_model, protocol, te_inputs, tuple(specs), jnp.asarray(float(rated)),
+    return DerivedMetrics(hyst_model, te_model, protocol, te_inputs, bench, tuple(specs), jnp.asarray(float(rated)),
                           jnp.asarray(lost_motion_pct / 100.0))
+
+
+def _data_amplitudes(campaign: Campaign) -> tuple[float, float] | None:
+    """(smallest, largest) cycle amplitude (N·m) over the campaign's hysteresis runs, as the
+    data-only metrics group them; None without a run whose cycles can be grouped."""
+    small, large = [], []
+    for run in campaign.hysteresis_runs:
+        try:
+            classes = cycle_classes(run.time_s, run.torque_Nm, run.angle_rad, name=run.name)
+        except InputError:
+            continue
+        small.append(classes.smallest.amplitude_Nm)
+        large.append(classes.largest.amplitude_Nm)
+    if not small:
+        return None
+    return float(min(small)), float(max(large))
