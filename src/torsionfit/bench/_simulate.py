@@ -146,6 +146,8 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
                 angle_rad=measured_angle(total, np.deg2rad(spec.position_deg)),
                 loading_rate_Nm_per_s=spec.loading_rate_Nm_per_s,
                 source="synthetic",
+                # a loop below the rated torque declares its nominal peak (the reader checks it)
+                peak_torque_Nm=None if spec.peak_torque_Nm == bench.reducer.rated_torque_Nm else spec.peak_torque_Nm,
             ))
         else:
             phi = np.asarray(inp.output_angle_rad)
