@@ -5,8 +5,13 @@ extension. Adding an effect is one new subclass of :class:`Effect` here, listed 
 import abc
 from dataclasses import replace
 
+import equinox as eqx
+import jax
+import jax.numpy as jnp
 import numpy as np
 
+from ..model import DahlFriction, MaxwellSlipFriction
+from ..model._effects import DEFAULT_FRICTION_ELEMENTS
 from ._context import FitContext
 from ._signature import Evidence, regression_evidence
 
@@ -239,6 +244,132 @@ class TorqueOffset(Effect):
         return {**effects, self.name: True}
 
 
+# --- friction: score tests against the fitted model ------------------------------------------
+@eqx.filter_jit
+def _directions(problem, u, alt, extra: dict):
+    """At the fit ``u`` of ``problem``: the prediction per run, its Jacobian with respect to
+    every physics parameter of the fitted model, the prediction of the ``alt`` model at the
+    same values plus ``extra`` and its Jacobian with respect to ``extra``."""
+    values = problem.full_values(u)
+    inputs = problem.corrected_inputs(u[:problem.n_nonlinear])
+    phys = {p.name: values[p.name] for p in problem.physics}
+    pred = problem.model.predict(values, inputs)
+    jac = jax.jacfwd(lambda ph: problem.model.predict({**values, **ph}, inputs))(phys)
+    alt_pred = alt.predict({**values, **extra}, inputs)
+    alt_jac = jax.jacfwd(lambda ex: alt.predict({**values, **ex}, inputs))(extra)
+    return pred, jac, alt_pred, alt_jac
+
+
+def _columns(jac_run: dict) -> np.ndarray:
+    """A run's Jacobian (name → (N,) or (N, size)) as an (N, k) matrix."""
+    cols = [np.asarray(v, float).reshape(np.shape(v)[0], -1) for v in jac_run.values()]
+    return np.concatenate(cols, axis=1) if cols else np.zeros((0, 0))
+
+
+def _span(x: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
+    """Well-conditioned columns spanning the non-negligible part of ``x``'s column space (each
+    column scaled to unit norm first, so units do not decide what is negligible)."""
+    norms = np.linalg.norm(x, axis=0)
+    x = x[:, norms > 0] / norms[norms > 0]
+    if not x.shape[1]:
+        return x
+    uu, sv, _ = np.linalg.svd(x, full_matrices=False)
+    return uu[:, sv > rtol * sv[0]] * sv[sv > rtol * sv[0]]
+
+
+def _friction_score(ctx: FitContext, name: str, alt, extra: dict, columns, description: str, details=None) -> Evidence:
+    """Signature of a friction extension as a score test: ``columns(pred, alt_pred, alt_jac)``
+    gives per run the first-order directions of the extension (N, k); they are tested on the
+    hysteresis runs' whitened residuals after projecting out the run's linear terms and the
+    fitted model's own physics directions (what a refit of the present parameters would absorb)."""
+    problem = ctx.map_result.problem
+    extra = {k: jnp.asarray(v, float) for k, v in extra.items()}
+    pred, jac, alt_pred, alt_jac = _directions(problem, jnp.asarray(ctx.map_result.u), alt, extra)
+    views, cols = [], []
+    for i, run in enumerate(ctx.runs):
+        if run.kind != "hysteresis":
+            views.append(run)
+            cols.append(None)
+            continue
+        own = _span(_columns(jac[i]))
+        design = np.concatenate([run.design, own], axis=1) if own.size else run.design
+        views.append(replace(run, design=design))
+        cols.append(columns(np.asarray(pred[i]), np.asarray(alt_pred[i]), {k: np.asarray(v) for k, v in alt_jac[i].items()}))
+    return regression_evidence(name, views, cols, description, details)
+
+
+def _with_friction(model, friction):
+    return eqx.tree_at(lambda mm: mm.friction, model, friction)
+
+
+#: break-away spread of the slip elements the distributed-friction signature compares with
+SIGNATURE_SPREAD = 0.8
+
+
+def replace_friction(friction, **changes):
+    """``friction`` with its static fields changed."""
+    if isinstance(friction, DahlFriction):
+        fields = dict(initial_state=friction.initial_state, load_dependent=friction.load_dependent)
+        return DahlFriction(**{**fields, **changes})
+    fields = dict(n_elements=friction.n_elements, initial_state=friction.initial_state, load_dependent=friction.load_dependent)
+    return MaxwellSlipFriction(**{**fields, **changes})
+
+
+class LoadDependentFriction(Effect):
+    name = "load_dependent_friction"
+    signature_text = "loop width (flat span after a reversal) grows with the peak load; branches not parallel"
+    extension_text = "friction level T_f + μ|τ| growing with the transmitted torque"
+
+    def applicable(self, ctx):
+        return bool(ctx.hysteresis) and not ctx.map_result.problem.model.friction.load_dependent
+
+    def signature(self, ctx, alpha):
+        # The score of μ at μ = 0: the prediction's derivative with respect to μ at the fitted
+        # values — for Dahl friction −C'(τ_m)·|τ|·z, for slip elements the load each element
+        # carried at its last slip — which is exactly what the missing μ leaves in the residual.
+        fr = ctx.map_result.problem.model.friction
+        alt = _with_friction(ctx.map_result.problem.model, replace_friction(fr, load_dependent=True))
+        return _friction_score(
+            ctx, self.name, alt, {"friction_load_coefficient": 0.0},
+            lambda pred, alt_pred, alt_jac: alt_jac["friction_load_coefficient"][:, None],
+            "residual along the fitted model's derivative with respect to a load-dependent friction level μ|τ| "
+            "(flat span after a reversal growing with the peak)")
+
+    def extend(self, effects, evidence, ctx):
+        return {**effects, self.name: True}
+
+
+class DistributedFriction(Effect):
+    name = "distributed_friction"
+    signature_text = "rounded pre-sliding after reversals that one Dahl element cannot follow"
+    extension_text = "Maxwell-slip elements with a log-normal break-away density (spread s)"
+
+    def applicable(self, ctx):
+        return bool(ctx.hysteresis) and isinstance(ctx.map_result.problem.model.friction, DahlFriction)
+
+    def signature(self, ctx, alpha):
+        # Non-nested alternative (a P test): the change of the prediction when the fitted Dahl
+        # element is replaced by slip elements of the same level with break-away spread s, and
+        # the slip model's derivatives in s and in its level T_f (the best slip model lies near,
+        # not at, the Dahl fit's level) — each orthogonal to everything the Dahl parameters
+        # (T_f, τ_d, start state, …) can already do.
+        problem = ctx.map_result.problem
+        fr = problem.model.friction
+        alt = _with_friction(problem.model, MaxwellSlipFriction(
+            n_elements=DEFAULT_FRICTION_ELEMENTS, initial_state=fr.initial_state, load_dependent=fr.load_dependent))
+        level = float(problem.physics_values(jnp.asarray(ctx.map_result.u))["friction_torque"])
+        return _friction_score(
+            ctx, self.name, alt, {"breakaway_spread": SIGNATURE_SPREAD, "friction_torque": level},
+            lambda pred, alt_pred, alt_jac: np.stack(
+                [alt_pred - pred, alt_jac["breakaway_spread"], alt_jac["friction_torque"] * level], axis=1),
+            f"residual along the change from one Dahl element to {DEFAULT_FRICTION_ELEMENTS} slip elements "
+            f"(break-away spread {SIGNATURE_SPREAD}) and the slip model's derivatives in spread and level: "
+            "rounded pre-sliding")
+
+    def extend(self, effects, evidence, ctx):
+        return {**effects, self.name: True}
+
+
 CATALOG: tuple[Effect, ...] = (
     StiffnessNonlinearity(),
     RateDependence(),
@@ -247,4 +378,6 @@ CATALOG: tuple[Effect, ...] = (
     Asymmetry(),
     ThermalDrift(),
     TorqueOffset(),
+    LoadDependentFriction(),
+    DistributedFriction(),
 )
