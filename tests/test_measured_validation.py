@@ -1,0 +1,57 @@
+"""scripts/measured_validation.py: the pieces that decide what is compared — the authors'
+numbers read from the data's README, the train/whole-file manifests — on the REAL measured
+loops (JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0; read from ../shared/data,
+skipped when absent). The whole validation run is a command (minutes per file), not a test."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("scipy", reason="the validation's reference fit needs scipy (not a torsionfit dependency)")
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data" / "cycloidal-jv"
+pytestmark = pytest.mark.skipif(not DATA.is_dir(), reason=f"measured data absent: {DATA}")
+
+_spec = importlib.util.spec_from_file_location("_measured_validation", ROOT / "scripts" / "measured_validation.py")
+mv = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(mv)
+
+
+def test_authors_numbers_are_read_for_every_configuration():
+    table = mv.authors_table()
+    configs = {mv._config(p.stem) for p in (ROOT / "examples" / "cycloidal-jv").glob("*.toml")}
+    assert configs <= set(table), f"no authors' numbers for {configs - set(table)}"
+    assert table["baseline-pccf-initial"] == (2.556, 0.075, 0.093)
+    assert table["split-pccf-preload3"] == (0.121, 0.086, 0.095)
+
+
+def test_train_manifest_holds_out_the_last_large_ramp(tmp_path):
+    from torsionfit.io import load_campaign
+
+    unit = "split-pccf-preload3-pos1"
+    path = DATA / "split-pccf" / "preload3-pos1.csv.gz"
+    ramps = mv.test_numbers(path)
+    assert max(ramps) >= 100 and min(ramps) < 100
+    nr = mv._test_nr_of(path)
+    train = load_campaign(mv.manifest(unit, [r for r in ramps if r != max(ramps)], tmp_path))
+    whole = load_campaign(mv.manifest(unit, None, tmp_path))
+    assert len(whole.runs[0]) == len(nr)
+    assert len(train.runs[0]) == int(np.sum(nr != max(ramps)))
+    # the held-out ramp is the end of the file: the fitted part is its beginning, so the
+    # friction state the fit starts from is the whole file's
+    np.testing.assert_array_equal(whole.runs[0].angle_rad[: len(train.runs[0])], train.runs[0].angle_rad)
+
+
+def test_block_reduction_matches_the_decimated_campaign(tmp_path):
+    from torsionfit.io import decimate, load_campaign
+
+    unit = "baseline-pccf-runin-pos5"
+    whole = load_campaign(mv.manifest(unit, None, tmp_path))
+    small = decimate(whole, 16)
+    got = mv._block(whole.runs[0].angle_rad, 16, len(small.runs[0]))
+    np.testing.assert_allclose(got, small.runs[0].angle_rad)
+    with pytest.raises(RuntimeError, match="blocks of 16"):
+        mv._block(whole.runs[0].angle_rad, 16, len(small.runs[0]) + 1)
