@@ -261,10 +261,18 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict) -> st
             f"| {r['unit']} | {r['rmse_in_sample_arcsec']:.0f} | {r['rmse_held_out_arcsec']:.0f} | {r['reference']['oos_rest']:.0f} | "
             f"{r['ratio_held_out']:.2f} | {100 * r['coverage90_held_out']:.0f} % | {r['play_data_deg']:.3f} | {pm_s} | {cd:.4f} | {cm_s} | {r['diagnostics']['converged']} |"
         )
+    ratios = np.array([r["ratio_held_out"] for r in rows])
+    cover = np.array([r["coverage90_held_out"] for r in rows])
+    lines += ["", f"Held-out RMSE at or below the reference on {int(np.sum(ratios <= 1))} of {len(rows)} loops "
+              f"(≤ 0.8× on {int(np.sum(ratios <= 0.8))}; median ratio {np.median(ratios):.2f}, worst {ratios.max():.2f}); "
+              f"90 % predictive interval covering 80–95 % of the held-out ramp on {int(np.sum((cover >= 0.8) & (cover <= 0.95)))} of {len(rows)} "
+              f"(median {100 * np.median(cover):.0f} %, range {100 * cover.min():.0f}–{100 * cover.max():.0f} %); "
+              f"converged on {sum(bool(r['diagnostics']['converged']) for r in rows)} of {len(rows)}."]
     authors = authors_table()
     lines += ["", "Per configuration, positions averaged like the data's authors (their numbers from the data's README):", "",
               "| configuration | play authors (deg) | play data | play model (95 % HDI) | compliance authors (deg/N·m) | compliance data | compliance model (95 % HDI) | authors' play in model HDI | authors' compliance in model HDI |",
               "| --- | ---: | ---: | --- | ---: | ---: | --- | --- | --- |"]
+    checks = []
     for config in dict.fromkeys(_config(r["unit"]) for r in rows):
         group = [r for r in rows if _config(r["unit"]) == config]
         a = authors.get(config)
@@ -290,8 +298,18 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict) -> st
         else:
             model_p = model_c = "n/a"
             in_p = in_c = False
+        if ok:
+            model_p += f" ({100 * (pm / a_play - 1):+.0f} %)"
+            model_c += f" ({100 * (cm / a_comp - 1):+.0f} %)"
+            checks.append((abs(d_play / a_play - 1) <= 0.10, abs(d_comp / a_comp - 1) <= 0.10,
+                           abs(pm / a_play - 1) <= 0.15 and in_p, abs(cm / a_comp - 1) <= 0.15 and in_c))
         lines.append(f"| {config} | {a_play:.3f} | {d_play:.3f} ({100 * (d_play / a_play - 1):+.0f} %) | {model_p} | {a_comp:.4f} | "
                      f"{d_comp:.4f} ({100 * (d_comp / a_comp - 1):+.0f} %) | {model_c} | {in_p} | {in_c} |")
+    if checks:
+        c = np.array(checks)
+        lines += ["", f"Of {len(c)} configurations: data-only play within 10 % of the authors' on {c[:, 0].sum()}, loading "
+                  f"compliance on {c[:, 1].sum()}; the model's play within 15 % with the authors' value inside its 95 % HDI on "
+                  f"{c[:, 2].sum()}, its loading compliance on {c[:, 3].sum()}."]
     return "\n".join(lines)
 
 

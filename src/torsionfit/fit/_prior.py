@@ -8,9 +8,8 @@ import math
 
 import numpy as np
 
-from .._errors import InputError
 from ..io import Campaign, HysteresisRun
-from ..metrics._hysteresis import cycle_classes
+from ..metrics._hysteresis import grouped_cycles
 
 
 def first_look_stiffness(campaign: Campaign) -> float:
@@ -45,11 +44,7 @@ def first_look_loop(campaign: Campaign) -> tuple[float, float] | None:
     series, friction is what shifts the two branches apart in torque, so it cannot be much
     larger."""
     plays, widths = [], []
-    for run in campaign.hysteresis_runs:
-        try:
-            classes = cycle_classes(run.time_s, run.torque_Nm, run.angle_rad, name=run.name)
-        except InputError:
-            continue
+    for classes in grouped_cycles(campaign.hysteresis_runs):
         small, large = classes.smallest, classes.largest
         i0 = int(np.argmin(np.abs(small.torque_Nm)))
         plays.append(float(small.upper_rad[i0] - small.lower_rad[i0]))

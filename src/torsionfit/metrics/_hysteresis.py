@@ -446,6 +446,18 @@ def cycle_classes(
     return CycleClasses(smooth, tuple(segments), tuple(classes), tuple(dropped))
 
 
+def grouped_cycles(runs) -> list[CycleClasses]:
+    """:func:`cycle_classes` of every hysteresis run whose cycles can be grouped (the others,
+    e.g. a run with no full cycle, are left out)."""
+    out = []
+    for run in runs:
+        try:
+            out.append(cycle_classes(run.time_s, run.torque_Nm, run.angle_rad, name=run.name))
+        except InputError:
+            continue
+    return out
+
+
 # ----------------------------------------------------------------------------- play, loading slope
 
 #: the loading-slope fit ends at this fraction of the class's peak on each side: a bench whose

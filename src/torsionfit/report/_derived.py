@@ -22,9 +22,8 @@ import numpy as np
 
 from .. import model as m
 from .._chunks import CHUNK, map_chunks
-from .._errors import InputError
 from ..io import Campaign
-from ..metrics._hysteresis import LOADING_FIT_TOP, cycle_classes
+from ..metrics._hysteresis import LOADING_FIT_TOP, grouped_cycles
 from ..units import ANGLE_UNITS, SPEED_UNITS, STIFFNESS_UNITS
 
 ARCMIN = ANGLE_UNITS["arcmin"]
@@ -332,14 +331,7 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
 def _data_amplitudes(campaign: Campaign) -> tuple[float, float] | None:
     """(smallest, largest) cycle amplitude (N·m) over the campaign's hysteresis runs, as the
     data-only metrics group them; None without a run whose cycles can be grouped."""
-    small, large = [], []
-    for run in campaign.hysteresis_runs:
-        try:
-            classes = cycle_classes(run.time_s, run.torque_Nm, run.angle_rad, name=run.name)
-        except InputError:
-            continue
-        small.append(classes.smallest.amplitude_Nm)
-        large.append(classes.largest.amplitude_Nm)
-    if not small:
+    groups = grouped_cycles(campaign.hysteresis_runs)
+    if not groups:
         return None
-    return float(min(small)), float(max(large))
+    return min(g.smallest.amplitude_Nm for g in groups), max(g.largest.amplitude_Nm for g in groups)
