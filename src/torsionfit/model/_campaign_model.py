@@ -19,6 +19,7 @@ import jax.numpy as jnp
 from ._backlash import AbstractBacklash, SmoothBacklash
 from ._compliance import AbstractCompliance, LinearCompliance
 from ._creep import Creep
+from ._drift import drift_parameters, run_drift
 from ._friction import AbstractFriction, DahlFriction
 from ._inputs import HysteresisInput, TEInput
 from ._kinematic import KinematicHarmonics
@@ -44,6 +45,7 @@ class CampaignModel(eqx.Module):
     kinematic: KinematicHarmonics | None = None
     speed: SpeedDependence | None = None
     drift: bool = eqx.field(static=True, default=False)
+    drift_shape: str = eqx.field(static=True, default="linear")  # _drift.SHAPES
     torque_offset: bool = eqx.field(static=True, default=False)
     #: friction state at the start of each hysteresis run as a parameter (a run may start
     #: anywhere in the unit's history); False: the friction module's fixed initial state
@@ -83,7 +85,7 @@ class CampaignModel(eqx.Module):
             if self.kinematic is not None:
                 out += self.kinematic.parameters()
         if self.drift:
-            out += (Parameter("drift", "real", "rad/s", "linear drift per run", len(self.run_kinds), True),)
+            out += drift_parameters(len(self.run_kinds), self.drift_shape)
         return out
 
     # --- one run -------------------------------------------------------------------------
@@ -99,7 +101,7 @@ class CampaignModel(eqx.Module):
         creep = zeros if self.creep is None else self.creep.twist(params, data.time_s, mesh, self.scan)
         drift = zeros
         if self.drift:
-            drift = jnp.atleast_1d(params["drift"])[run_index] * (data.time_s - data.time_s[0])
+            drift = run_drift(params, run_index, data.time_s, self.drift_shape)
         offset = zeros + jnp.atleast_1d(params["angle_offset"])[hyst_index]
         return torque, mesh, friction_torque, creep, drift, offset
 
@@ -150,7 +152,7 @@ class CampaignModel(eqx.Module):
         kinematic = zeros if self.kinematic is None else self.kinematic(params, phi)
         drift = zeros
         if self.drift:
-            drift = jnp.atleast_1d(params["drift"])[run_index] * (data.time_s - data.time_s[0])
+            drift = run_drift(params, run_index, data.time_s, self.drift_shape)
         offset = zeros + jnp.atleast_1d(params["te_offset"])[0]
         return self._finish(
             dict(elastic=elastic, friction=friction, geometric=geometric, creep=creep,

@@ -4,6 +4,7 @@ from .._errors import InputError
 from ._campaign_model import CampaignModel
 from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, ThreeSegmentCompliance
 from ._creep import Creep
+from ._drift import SHAPES as DRIFT_SHAPES
 from ._friction import DahlFriction, MaxwellSlipFriction
 from ._kinematic import KinematicHarmonics
 from ._speed import SpeedDependence
@@ -34,6 +35,10 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         if not isinstance(orders, list) or not all(isinstance(o, int) and o > 0 for o in orders):
             raise InputError(f"[effects].kinematic_error: expected a list of positive integer orders, got {kin!r}")
         kinematic = KinematicHarmonics(orders=tuple(orders))
+    drift = effects.get("thermal_drift")
+    drift_shape = "linear" if drift in (None, False, True) else drift
+    if drift_shape not in DRIFT_SHAPES:
+        raise InputError(f"[effects].thermal_drift: expected true, 'linear' or 'warm_up', got {drift!r}")
     sp = effects.get("speed_dependence")
     speed = None
     if sp:
@@ -47,7 +52,8 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         creep=Creep() if effects.get("rate_dependence") else None,
         kinematic=kinematic,
         speed=speed,
-        drift=bool(effects.get("thermal_drift")),
+        drift=bool(drift),
+        drift_shape=drift_shape,
         torque_offset=bool(effects.get("torque_offset")),
         scan=scan,
     )
