@@ -77,9 +77,10 @@ def _protocol(rated, rate, samples_per_step: int, lost_motion_fraction: float) -
     return _Protocol(jnp.asarray(t), jnp.asarray(tau), 2 * k, 3 * k, 4 * k, 5 * k)
 
 
-#: samples per leg (peak to peak) of the play and stiffness cycles of the bench record; cycles
+#: samples per leg (peak to peak) of the play and stiffness cycles of the bench record (the
+#: levels read are samples; the loading slopes are least squares over them); cycles
 #: of each: the metrics read the last one, the ones before settle the friction state
-BENCH_SAMPLES_PER_LEG = 400
+BENCH_SAMPLES_PER_LEG = 100
 BENCH_SMALL_CYCLES = 3
 BENCH_LARGE_CYCLES = 2
 
