@@ -51,6 +51,9 @@ class CampaignModel(eqx.Module):
     #: anywhere in the unit's history); False: the friction module's fixed initial state
     free_friction_start: bool = eqx.field(static=True, default=False)
     scan: ScanMethod = eqx.field(static=True, default="auto")
+    #: TE zeros: one ``te_offset`` per zero group (benches that re-zero before each test);
+    #: a TE run's group is ``TEInput.zero_group``
+    te_zero_groups: int = eqx.field(static=True, default=1)
 
     def __check_init__(self):
         bad = [k for k in self.run_kinds if k not in ("hysteresis", "transmission_error")]
@@ -81,7 +84,7 @@ class CampaignModel(eqx.Module):
                 Parameter("angle_offset", "real", "rad", "θ_0 per hysteresis run", self.n_hysteresis, True),
             )
         if self.n_te:
-            out += (Parameter("te_offset", "real", "rad", "TE_0 shared by all TE runs", 1, True),)
+            out += (Parameter("te_offset", "real", "rad", "TE_0 per TE zero group (one: shared by all TE runs)", self.te_zero_groups, True),)
             if self.kinematic is not None:
                 out += self.kinematic.parameters()
         if self.drift:
@@ -153,7 +156,7 @@ class CampaignModel(eqx.Module):
         drift = zeros
         if self.drift:
             drift = run_drift(params, run_index, data.time_s, self.drift_shape)
-        offset = zeros + jnp.atleast_1d(params["te_offset"])[0]
+        offset = zeros + jnp.atleast_1d(params["te_offset"])[data.zero_group]
         return self._finish(
             dict(elastic=elastic, friction=friction, geometric=geometric, creep=creep,
                  kinematic=kinematic, drift=drift, offset=offset),

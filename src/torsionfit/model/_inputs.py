@@ -24,13 +24,14 @@ class TEInput(eqx.Module):
     torque_Nm: jnp.ndarray  # scalar, nominal load ≥ 0
     speed_rad_s: jnp.ndarray  # scalar, output speed ≥ 0
     direction: jnp.ndarray  # scalar, +1 forward, −1 backward
+    zero_group: jnp.ndarray = eqx.field(default_factory=lambda: jnp.asarray(0))  # index into te_offset
 
 
 def hysteresis_input(time_s, torque_Nm) -> HysteresisInput:
     return HysteresisInput(jnp.asarray(time_s, float), jnp.asarray(torque_Nm, float))
 
 
-def te_input(output_angle_rad, torque_Nm, speed_rpm, direction, time_s=None) -> TEInput:
+def te_input(output_angle_rad, torque_Nm, speed_rpm, direction, time_s=None, zero_group: int = 0) -> TEInput:
     phi = np.asarray(output_angle_rad, float)
     if time_s is None:  # constant speed: time follows from the angle travelled (either direction)
         speed = max(speed_rpm * 2 * np.pi / 60, 1e-12)
@@ -41,4 +42,5 @@ def te_input(output_angle_rad, torque_Nm, speed_rpm, direction, time_s=None) -> 
         jnp.asarray(float(torque_Nm)),
         jnp.asarray(speed_rpm * 2 * np.pi / 60.0),
         jnp.asarray(float(direction)),
+        jnp.asarray(int(zero_group)),
     )
