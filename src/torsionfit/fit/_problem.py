@@ -22,6 +22,7 @@ kinematic harmonics) are not in u: for any u they are solved by weighted least s
 prior, so the sampler sees only the non-linear physics.
 """
 
+import dataclasses
 from dataclasses import dataclass
 
 import equinox as eqx
@@ -64,7 +65,8 @@ def model_inputs(campaign: Campaign, denoise_fraction: float | None = None, retu
             out.append(m.hysteresis_input(run.time_s, tau))
             variances.append(var)
         else:
-            out.append(m.te_input(run.output_angle_rad, run.torque_Nm, run.speed_rpm, run.direction, run.time_s))
+            out.append(m.te_input(run.output_angle_rad, run.torque_Nm, run.speed_rpm, run.direction, run.time_s,
+                                  zero_group=campaign.te_zero_index(run)))
             variances.append(np.zeros(len(run)))
     return (out, variances) if return_variance else out
 
@@ -356,6 +358,9 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
     kinds = tuple(r.kind for r in campaign.runs)
     if model.run_kinds != kinds:
         raise ValueError(f"model is for runs {model.run_kinds}, campaign has {kinds}")
+    if campaign.te_runs and model.te_zero_groups != len(campaign.te_zero_groups):
+        # one TE zero per zero group of the campaign (manifest key zero_group)
+        model = dataclasses.replace(model, te_zero_groups=len(campaign.te_zero_groups))
     check_fittable(campaign)
     params = model.parameters()
     physics = tuple(p for p in params if not p.linear)

@@ -25,6 +25,9 @@ class Instrument:
     torque_accuracy_pct_fs: float | None = None
     encoder_resolution_arcsec: float | None = None
     sample_rate_Hz: float | None = None
+    #: sign of TE in the bench's files: "lag_positive" (a load that makes the output lag gives
+    #: positive TE) or "lag_negative" (negated on reading); a run may override it
+    te_convention: str = "lag_positive"
 
     @property
     def torque_sd_Nm(self) -> float | None:
@@ -54,6 +57,10 @@ class HysteresisRun:
     source: str = ""
     #: nominal peak load of the ramps (N·m); None = the reducer's rated torque
     peak_torque_Nm: float | None = None
+    #: nominal temperature of the run (°C, the manifest's temperature_C key)
+    nominal_temperature_C: float | None = None
+    #: what reading changed (e.g. a dropped pad of non-finite rows), shown by ``metrics``
+    notes: tuple[str, ...] = ()
     kind: str = field(default="hysteresis", init=False)
 
     def __len__(self) -> int:
@@ -74,6 +81,14 @@ class TransmissionErrorRun:
     torque_series_Nm: np.ndarray | None = None
     temperature_C: np.ndarray | None = None
     source: str = ""
+    #: runs with the same zero group share one TE zero (None: the campaign's common zero)
+    zero_group: str | None = None
+    #: the TE sign convention the run was declared with (its TE is lag-positive in memory)
+    te_convention: str = "lag_positive"
+    #: nominal temperature of the run (°C, the manifest's temperature_C key)
+    nominal_temperature_C: float | None = None
+    #: what reading changed (sign convention, dropped pad rows, derived time), shown by ``metrics``
+    notes: tuple[str, ...] = ()
     kind: str = field(default="transmission_error", init=False)
 
     def __len__(self) -> int:
@@ -100,3 +115,12 @@ class Campaign:
     @property
     def te_runs(self) -> tuple[TransmissionErrorRun, ...]:
         return tuple(r for r in self.runs if isinstance(r, TransmissionErrorRun))
+
+    @property
+    def te_zero_groups(self) -> tuple[str | None, ...]:
+        """The TE zero groups in order of first use (None: runs without ``zero_group``)."""
+        return tuple(dict.fromkeys(r.zero_group for r in self.te_runs))
+
+    def te_zero_index(self, run: TransmissionErrorRun) -> int:
+        """Index of ``run``'s zero group in :attr:`te_zero_groups` (the model's ``te_offset``)."""
+        return self.te_zero_groups.index(run.zero_group)

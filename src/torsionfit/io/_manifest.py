@@ -21,11 +21,13 @@ from .. import units
 from .._errors import InputError
 from ._campaign import Campaign, HysteresisRun, Instrument, Reducer, TransmissionErrorRun
 from ._columns import CANONICAL
+from ._convention import check_te_convention
 from ._runs import RunSpec, read_run
 
 MANIFEST_NAME = "campaign.toml"
 KINDS = ("hysteresis", "transmission_error")
 DIRECTIONS = {"forward": 1, "backward": -1}
+TE_CONVENTIONS = ("lag_positive", "lag_negative")
 
 _TOP_KEYS = ("label", "reducer", "instrument", "runs")
 _REDUCER_KEYS = ("name", "rated_torque_Nm", "ratio", "max_speed_rpm")
@@ -35,10 +37,11 @@ _INSTRUMENT_KEYS = (
     "encoder_resolution_arcsec",
     "sample_rate_Hz",
 )
-_COMMON_RUN_KEYS = ("name", "kind", "file", "columns", "units", "select")
+_COMMON_RUN_KEYS = ("name", "kind", "file", "columns", "units", "select", "temperature_C")
 _RUN_KEYS = {
     "hysteresis": _COMMON_RUN_KEYS + ("loading_rate_Nm_per_s", "peak_torque_Nm"),
-    "transmission_error": _COMMON_RUN_KEYS + ("speed_rpm", "torque_Nm", "direction"),
+    "transmission_error": _COMMON_RUN_KEYS
+    + ("speed_rpm", "input_speed_rpm", "torque_Nm", "direction", "te_convention", "zero_group"),
 }
 
 
@@ -79,7 +82,7 @@ def load_campaign(path) -> Campaign:
             f"with name, kind and file"
         )
     folder = manifest.resolve().parent
-    specs = [_run_spec(i, entry, folder, shown) for i, entry in enumerate(entries)]
+    specs = [_run_spec(i, entry, folder, shown, reducer, instrument) for i, entry in enumerate(entries)]
     first_use: dict[str, int] = {}
     for spec in specs:
         if spec.name in first_use:
@@ -93,6 +96,7 @@ def load_campaign(path) -> Campaign:
         read_run(spec, reducer, f"{shown}: runs[{spec.index}] {spec.name!r} file {spec.file}")
         for spec in specs
     )
+    check_te_convention(runs, shown)
     return Campaign(reducer, instrument, runs, path=manifest.resolve(), notes=label)
 
 
@@ -178,12 +182,23 @@ def _reducer(table: dict, manifest: Path, shown: str) -> Reducer:
 
 def _instrument(table: dict, shown: str) -> Instrument:
     where = f"{shown}: [instrument]"
-    _check_keys(table, _INSTRUMENT_KEYS, shown, "[instrument]")
+    _check_keys(table, _INSTRUMENT_KEYS + ("te_convention",), shown, "[instrument]")
     values = {key: _number(table, key, where, positive=True) for key in _INSTRUMENT_KEYS}
-    return Instrument(**values)
+    return Instrument(**values, te_convention=_convention(table, where, "lag_positive"))
 
 
-def _run_spec(index: int, entry: dict, folder: Path, shown: str) -> RunSpec:
+def _convention(table: dict, where: str, default: str) -> str:
+    value = _text(table, "te_convention", where, default=default)
+    if value not in TE_CONVENTIONS:
+        raise InputError(
+            f"{where}: te_convention must be 'lag_positive' (a load that makes the output lag "
+            f"gives positive TE) or 'lag_negative', got {value!r}"
+        )
+    return value
+
+
+def _run_spec(index: int, entry: dict, folder: Path, shown: str, reducer: Reducer,
+              instrument: Instrument) -> RunSpec:
     where = f"{shown}: runs[{index}]"
     name = _text(entry, "name", where, required=True)
     where = f"{where} {name!r}"
@@ -206,6 +221,7 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str) -> RunSpec:
         columns=columns,
         units=unit_names,
         select=select,
+        temperature_C=_number(entry, "temperature_C", where),
     )
     if kind == "hysteresis":
         return RunSpec(
@@ -216,11 +232,27 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str) -> RunSpec:
     direction = _text(entry, "direction", where, required=True)
     if direction not in DIRECTIONS:
         raise InputError(f"{where}: direction must be 'forward' or 'backward', got {direction!r}")
+    speed = _number(entry, "speed_rpm", where, minimum=0)
+    input_speed = _number(entry, "input_speed_rpm", where, minimum=0)
+    if (speed is None) == (input_speed is None):
+        raise InputError(
+            f"{where}: give one of speed_rpm (output speed) or input_speed_rpm (motor speed, "
+            f"with [reducer] ratio); got {'both' if speed is not None else 'neither'}"
+        )
+    if input_speed is not None and reducer.ratio is None:
+        raise InputError(
+            f"{where}: input_speed_rpm needs [reducer] ratio to give the output speed; "
+            f"add ratio or give speed_rpm"
+        )
     return RunSpec(
         **common,
-        speed_rpm=_number(entry, "speed_rpm", where, required=True, minimum=0),
+        speed_rpm=speed,
+        input_speed_rpm=input_speed,
         torque_Nm=_number(entry, "torque_Nm", where, required=True, minimum=0),
         direction=DIRECTIONS[direction],
+        te_convention=_convention(entry, where, instrument.te_convention),
+        zero_group=_text(entry, "zero_group", where),
+        sample_rate_Hz=instrument.sample_rate_Hz,
     )
 
 
@@ -316,7 +348,8 @@ def write_campaign(campaign: Campaign, directory, *, label=None, bench_file=None
         file = _file_name(run.name, used)
         if isinstance(run, HysteresisRun):
             keys = dict(
-                loading_rate_Nm_per_s=run.loading_rate_Nm_per_s, peak_torque_Nm=run.peak_torque_Nm
+                loading_rate_Nm_per_s=run.loading_rate_Nm_per_s, peak_torque_Nm=run.peak_torque_Nm,
+                temperature_C=run.nominal_temperature_C,
             )
             columns = {
                 "time_s": run.time_s,
@@ -326,7 +359,9 @@ def write_campaign(campaign: Campaign, directory, *, label=None, bench_file=None
             }
         elif isinstance(run, TransmissionErrorRun):
             direction = {1: "forward", -1: "backward"}[int(run.direction)]
-            keys = dict(speed_rpm=run.speed_rpm, torque_Nm=run.torque_Nm, direction=direction)
+            # TE is written lag-positive (as held in memory), so no te_convention key
+            keys = dict(speed_rpm=run.speed_rpm, torque_Nm=run.torque_Nm, direction=direction,
+                        zero_group=run.zero_group, temperature_C=run.nominal_temperature_C)
             columns = {
                 "output_angle_deg": units.from_si(run.output_angle_rad, "angle", "deg"),
                 "te_arcsec": units.from_si(run.te_rad, "angle", "arcsec"),

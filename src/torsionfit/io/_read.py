@@ -46,10 +46,14 @@ class Table:
                 f"{self.where}: column {name!r}{why} not found; columns are {self.column_list()}"
             )
 
-    def numbers(self, name: str) -> np.ndarray:
-        """Column ``name`` as finite floats; InputError naming the line of the first bad cell."""
+    def numbers(self, name: str, finite: bool = True) -> np.ndarray:
+        """Column ``name`` as finite floats; InputError naming the line of the first bad cell.
+        With ``finite=False`` NaN, inf and empty cells read as NaN (for [runs.select], which
+        drops them) and only text that is no number at all is an error."""
         self.require(name)
         text = self.cells[name]
+        if not finite:
+            text = np.where(np.char.strip(text) == "", "nan", text)
         try:
             values = text.astype(float)
         except ValueError:
@@ -65,7 +69,7 @@ class Table:
                     ) from None
             raise  # pragma: no cover - astype and float() agree
         bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
+        if bad.size and finite:
             i = bad[0]
             raise InputError(
                 f"{self.where}: column {name!r} line {self.lines[i]}: expected a finite number, "
@@ -147,6 +151,32 @@ def read_table(path: Path, where: str) -> Table:
     return Table(where, header, cells, np.asarray(row_lines, dtype=int), duplicated)
 
 
+def missing_cells(text: np.ndarray) -> np.ndarray:
+    """True where a cell is empty or a non-finite number (NaN, inf): a pad, not data."""
+    stripped = np.char.lower(np.char.strip(text))
+    return np.isin(stripped, ("", "nan", "+nan", "-nan", "inf", "+inf", "-inf", "infinity",
+                              "+infinity", "-infinity", "na", "n/a", "null"))
+
+
+def drop_trailing_pad(table: Table, columns: list[str]) -> tuple[Table, int]:
+    """``table`` without its trailing rows in which every one of ``columns`` is missing (a
+    side-by-side export pads the shorter direction), and how many rows were dropped."""
+    columns = [c for c in columns if c in table.cells]  # a duplicated name fails on reading
+    if not columns:
+        return table, 0
+    missing = np.ones(len(table), dtype=bool)
+    for column in columns:
+        missing &= missing_cells(table.cells[column])
+    n = 0
+    while n < len(table) and missing[len(table) - 1 - n]:
+        n += 1
+    if n == 0:
+        return table, 0
+    keep = np.ones(len(table), dtype=bool)
+    keep[len(table) - n:] = False
+    return table.subset(keep), n
+
+
 def describe_rule(column: str, rule) -> str:
     """Human text of one ``[runs.select]`` rule."""
     if isinstance(rule, dict):
@@ -171,7 +201,8 @@ def select_rows(table: Table, select: dict, where: str) -> Table:
         table.require(column, "from [runs.select]")
         numeric = isinstance(rule, dict) or all(not isinstance(v, str) for v in rule)
         if numeric:
-            values = table.numbers(column)
+            # a NaN or empty cell fails every rule: the row is dropped, not an error
+            values = table.numbers(column, finite=False)
             if isinstance(rule, dict):
                 passed = np.ones(len(table), dtype=bool)
                 if "min" in rule:

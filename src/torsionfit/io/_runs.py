@@ -9,7 +9,7 @@ import numpy as np
 from .._errors import InputError
 from ._campaign import HysteresisRun, Reducer, TransmissionErrorRun
 from ._columns import resolve_columns
-from ._read import Table, read_table, select_rows
+from ._read import Table, drop_trailing_pad, read_table, select_rows
 
 #: fewest samples a run may have after selection
 MIN_SAMPLES = 10
@@ -36,6 +36,12 @@ class RunSpec:
     speed_rpm: float | None = None
     torque_Nm: float | None = None
     direction: int | None = None
+    input_speed_rpm: float | None = None  # motor speed; output speed = input / ratio
+    te_convention: str = "lag_positive"  # the run's, else [instrument]'s
+    zero_group: str | None = None
+    sample_rate_Hz: float | None = None  # [instrument]; gives time to runs without a time column
+    # both kinds
+    temperature_C: float | None = None
 
 
 def read_run(spec: RunSpec, reducer: Reducer, where: str):
@@ -44,6 +50,14 @@ def read_run(spec: RunSpec, reducer: Reducer, where: str):
     found = resolve_columns(table.header, spec.kind, spec.columns, spec.units, where)
     if spec.select:
         table = select_rows(table, spec.select, where)
+    notes = []
+    used = sorted({column.name for column in found.values()})
+    table, dropped = drop_trailing_pad(table, used)
+    if dropped:
+        notes.append(
+            f"dropped {dropped} trailing row(s) where {', '.join(used)} hold no number "
+            f"(a pad after the end of the data)"
+        )
     if len(table) < MIN_SAMPLES:
         after = " after [runs.select]" if spec.select else ""
         raise InputError(
@@ -58,8 +72,8 @@ def read_run(spec: RunSpec, reducer: Reducer, where: str):
     if time is not None:
         _check_time(time, table, found["time"].name, where)
     if spec.kind == "hysteresis":
-        return _hysteresis(spec, reducer, table, si, time, found, where)
-    return _transmission_error(spec, reducer, si, time, found, where)
+        return _hysteresis(spec, reducer, table, si, time, found, where, notes)
+    return _transmission_error(spec, reducer, si, time, found, where, notes)
 
 
 def _check_time(time: np.ndarray, table: Table, column: str, where: str) -> None:
@@ -74,7 +88,7 @@ def _check_time(time: np.ndarray, table: Table, column: str, where: str) -> None
         )
 
 
-def _hysteresis(spec, reducer, table, si, time, found, where) -> HysteresisRun:
+def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> HysteresisRun:
     torque = si("torque")
     peak = spec.peak_torque_Nm if spec.peak_torque_Nm is not None else reducer.rated_torque_Nm
     reached = float(np.max(np.abs(torque)))
@@ -95,10 +109,12 @@ def _hysteresis(spec, reducer, table, si, time, found, where) -> HysteresisRun:
         temperature_C=si("temperature"),
         source=str(spec.path),
         peak_torque_Nm=spec.peak_torque_Nm,
+        nominal_temperature_C=spec.temperature_C,
+        notes=tuple(notes),
     )
 
 
-def _transmission_error(spec, reducer, si, time, found, where) -> TransmissionErrorRun:
+def _transmission_error(spec, reducer, si, time, found, where, notes) -> TransmissionErrorRun:
     output = si("output_angle")
     if "te" in found:
         te = si("te")
@@ -109,6 +125,12 @@ def _transmission_error(spec, reducer, si, time, found, where) -> TransmissionEr
                 f"te = output_angle - input_angle / ratio; add ratio or give a te_<unit> column"
             )
         te = output - si("input_angle") / reducer.ratio
+    if spec.te_convention == "lag_negative":
+        te = -te
+        notes.append("TE negated on reading (te_convention = 'lag_negative')")
+    speed = spec.speed_rpm
+    if speed is None:  # the manifest reader made sure one of the two is given, with ratio
+        speed = spec.input_speed_rpm / reducer.ratio
     # Sampling at n equal steps over one turn ends one step short of 360°, so the step is
     # added to the span before comparing.
     span = float(np.ptp(output))
@@ -118,15 +140,23 @@ def _transmission_error(spec, reducer, si, time, found, where) -> TransmissionEr
             f"{where}: column {found['output_angle'].name!r} spans {math.degrees(span):.4g}°; "
             f"a transmission-error run must cover at least one output revolution (360°)"
         )
+    if time is None and spec.sample_rate_Hz is not None:
+        time = np.arange(len(output)) / spec.sample_rate_Hz
+        notes.append(f"time from [instrument] sample_rate_Hz = {spec.sample_rate_Hz:g} (no time column)")
+    # otherwise time_s stays None: the model times the run by its speed and angle steps
     return TransmissionErrorRun(
         name=spec.name,
         output_angle_rad=output,
         te_rad=te,
         torque_Nm=spec.torque_Nm,
-        speed_rpm=spec.speed_rpm,
+        speed_rpm=speed,
         direction=spec.direction,
         time_s=time,
         torque_series_Nm=si("torque"),
         temperature_C=si("temperature"),
         source=str(spec.path),
+        zero_group=spec.zero_group,
+        te_convention=spec.te_convention,
+        nominal_temperature_C=spec.temperature_C,
+        notes=tuple(notes),
     )

@@ -160,7 +160,8 @@ def te_metrics(
         "te_mean": _entry(
             arcmin(te_mean),
             "arcmin",
-            f"mean TE − ref over {revolutions} whole revolution(s); {ref_note}",
+            f"mean TE − ref over {revolutions} whole revolution(s); {ref_note}"
+            + "".join(f"; {note}" for note in getattr(run, "notes", ())),
         ),
         "te_peak_to_peak": _entry(
             arcmin(ptp),

@@ -1,0 +1,85 @@
+"""Does loaded TE move with the load the way the declared ``te_convention`` says?
+
+In memory TE is lag-positive: the twist makes TE grow with the signed mesh torque
+d·(|τ| + T_f), d = +1 forward, −1 backward. So, between two runs that share a TE zero,
+(a) in one direction the revolution-mean TE moves away from zero with the load (up forward,
+down backward), and (b) a forward run's mean TE lies above a backward run's. A bench whose
+files are lag-negative, read as lag-positive, shows both the other way round.
+
+The check uses run means over whole revolutions (the kinematic error averages out) and counts a
+comparison only when its difference clears a noise margin; it stops only when clear
+contradictions outnumber clear agreements, so noise and kinematic error never trigger it.
+"""
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .._errors import InputError
+from ._campaign import TransmissionErrorRun
+
+#: a difference counts when it exceeds this many standard errors of the two means
+MARGIN_SE = 4.0
+#: samples over which TE noise is taken as correlated (for the standard error of a mean)
+CORRELATION_SAMPLES = 20
+
+
+def _mean_and_se(run: TransmissionErrorRun) -> tuple[float, float]:
+    """Mean TE over the run's whole revolutions (all of it if shorter) and its standard error."""
+    phi = np.unwrap(np.asarray(run.output_angle_rad, float))
+    te = np.asarray(run.te_rad, float)
+    progress = np.abs(phi - phi[0])
+    step = float(np.median(np.abs(np.diff(phi)))) if phi.size > 1 else 0.0
+    turns = math.floor((progress[-1] + step) / (2 * math.pi) + 1e-9)
+    keep = progress < turns * 2 * math.pi - 0.5 * step if turns >= 1 else np.ones(te.size, bool)
+    kept = te[keep]
+    noise = float(np.std(np.diff(te)) / math.sqrt(2.0)) if te.size > 2 else 0.0
+    se = noise * math.sqrt(CORRELATION_SAMPLES / max(kept.size, 1))
+    return float(np.mean(kept)), se
+
+
+def check_te_convention(runs, where: str) -> None:
+    """One-line InputError naming ``te_convention`` and the files when the loaded TE runs
+    contradict their declared sign convention (see the module text)."""
+    te_runs = [r for r in runs if isinstance(r, TransmissionErrorRun)]
+    stats = {id(r): _mean_and_se(r) for r in te_runs}
+    agree, against = 0, []
+    for i, a in enumerate(te_runs):
+        for b in te_runs[i + 1:]:
+            if a.zero_group != b.zero_group:
+                continue  # different zeros: their levels cannot be compared
+            if a.direction == b.direction:
+                if a.torque_Nm == b.torque_Nm:
+                    continue
+                low, high = (a, b) if a.torque_Nm < b.torque_Nm else (b, a)
+                expected = high.direction * (stats[id(high)][0] - stats[id(low)][0])
+                pair = (low, high)
+            else:
+                fw, bw = (a, b) if a.direction > 0 else (b, a)
+                expected = stats[id(fw)][0] - stats[id(bw)][0]
+                pair = (fw, bw)
+            margin = MARGIN_SE * math.hypot(stats[id(a)][1], stats[id(b)][1])
+            if expected > margin:
+                agree += 1
+            elif expected < -margin:
+                against.append(pair)
+    if against and len(against) > agree:
+        first, second = against[0]
+        files = sorted({Path(r.source).name or r.name for pair in against for r in pair})
+        shown = ", ".join(files[:6]) + (f", ... ({len(files)} files)" if len(files) > 6 else "")
+        conventions = sorted({r.te_convention for pair in against for r in pair})
+        arcmin = 60 * 180 / math.pi
+        raise InputError(
+            f"{where}: TE moves against te_convention = {' / '.join(map(repr, conventions))} in "
+            f"{len(against)} of {len(against) + agree} clear comparisons (e.g. {_label(first)} "
+            f"mean TE {stats[id(first)][0] * arcmin:.4g} arcmin vs {_label(second)} "
+            f"{stats[id(second)][0] * arcmin:.4g} arcmin) in {shown}; declare the bench's "
+            f"te_convention ('lag_negative' if a load that makes the output lag gives negative TE) "
+            f"in [instrument] or per run, and zero_group if it re-zeroes between tests"
+        )
+
+
+def _label(run: TransmissionErrorRun) -> str:
+    way = "forward" if run.direction > 0 else "backward"
+    return f"{run.name!r} ({way}, {run.torque_Nm:g} N·m)"
