@@ -89,6 +89,8 @@ def _cmd_fit(args) -> int:
         sampler=args.sampler,
         n_walkers=args.walkers,
         max_steps=args.max_steps,
+        n_chains=args.chains,
+        max_draws=args.max_draws,
         progress=not args.no_progress,
         backend_path=str(out / "chain.h5") if args.resume or args.save_chain else None,
         resume=args.resume,
@@ -114,7 +116,7 @@ def _cmd_diagnose(args) -> int:
     options = DiagnoseOptions(initial_effects=_parse_effects(args.with_))
     say = _progress("diagnose", quiet=args.quiet)
     result = diagnose(campaign, options, seed=args.seed, progress=say)
-    doc = write_diagnosis(result, campaign, args.output)
+    doc = write_diagnosis(result, campaign, args.output, seed=args.seed)
     print(summary_text(doc))
     print(f"wrote {Path(args.output) / 'diagnose.json'}, {Path(args.output) / 'figures'}/")
     return 0
@@ -262,13 +264,21 @@ def build_parser() -> argparse.ArgumentParser:
     _add_seed(p)
     _add_with(p, help="switch a model extension on by hand (repeatable), e.g. --with rate_dependence "
                       "--with 'kinematic_error=[1, 2, 39]' --with 'speed_dependence={viscous = true, compliance_order = 2}'")
-    _add_sampler(p)
+    _add_sampler(p, default="auto", choices=("auto", "emcee", "nuts", "laplace"),
+                 help="auto (default): emcee, or NUTS when emcee's first checks show it needs more than "
+                      "--max-steps; emcee; nuts (gradient-based, BlackJAX); laplace: the MAP's Gaussian "
+                      "approximation (fast screening). The choice and its reason go to fit.json")
     p.add_argument("--walkers", type=int, default=None, help="emcee walkers (default max(32, 2·dim+2))")
-    _add_max_steps(p, help="cap on emcee steps; reaching it gives converged: false")
+    _add_max_steps(p, help="cap on emcee steps; reaching it gives converged: false (auto: the budget "
+                           "against which emcee's first checks are judged)")
+    p.add_argument("--chains", type=int, default=4, help="NUTS chains (default 4)")
+    p.add_argument("--max-draws", type=int, default=4000,
+                   help="cap on NUTS draws per chain (500, doubled until converged); reaching it gives converged: false")
     p.add_argument("--ar1", choices=("auto", "on", "off"), default="auto", help="AR(1) residuals (auto: runs of ≥ 100 samples)")
     p.add_argument("--student-t", type=float, default=None, metavar="DOF", help="Student-t likelihood with DOF degrees of freedom")
-    p.add_argument("--save-chain", action="store_true", help="keep the emcee chain in OUTPUT/chain.h5")
-    p.add_argument("--resume", action="store_true", help="continue an interrupted run from OUTPUT/chain.h5")
+    p.add_argument("--save-chain", action="store_true",
+                   help="keep the chain in OUTPUT/chain.h5 (emcee) / OUTPUT/chain-nuts.npz (NUTS)")
+    p.add_argument("--resume", action="store_true", help="continue an interrupted run from those files")
     _add_no_progress(p)
     _add_decimate(p, help="fit block means of N consecutive samples (dense benches; recorded in fit.json)")
     p.set_defaults(func=_cmd_fit)

@@ -1,6 +1,8 @@
-"""One campaign, end to end: model → MAP → posterior (emcee, or the Laplace approximation)
-→ derived metrics with uncertainty → ``fit.json``, ``posterior.nc`` and figures."""
+"""One campaign, end to end: model → MAP → posterior (emcee, NUTS, emcee or NUTS chosen by
+the first checks — ``auto`` — or the Laplace approximation) → derived metrics with
+uncertainty → ``fit.json``, ``posterior.nc`` and figures."""
 
+import dataclasses
 import json
 import math
 import warnings
@@ -26,15 +28,21 @@ ARCSEC = ANGLE_UNITS["arcsec"]
 @dataclass(frozen=True)
 class FitOptions:
     """How to fit. ``effects``: model extensions by catalog name (DESIGN §3), switched on by
-    hand; ``sampler``: "emcee" (the posterior) or "laplace" (the MAP's Gaussian approximation,
-    fast, for screening)."""
+    hand; ``sampler``: "auto" (emcee where its first checks say it converges within
+    ``max_steps``, else NUTS — :func:`sample_posterior`), "emcee", "nuts" (BlackJAX, gradient
+    based) or "laplace" (the MAP's Gaussian approximation, fast, for screening).
+    ``max_steps``: emcee's step budget; ``n_chains``, ``n_warmup``, ``max_draws``: NUTS's
+    chains, warm-up steps and cap on draws per chain (doubled from 500 until converged)."""
 
     effects: dict = field(default_factory=dict)
     noise: NoiseOptions = NoiseOptions()
     n_starts: int = 4
-    sampler: str = "emcee"
+    sampler: str = "auto"
     n_walkers: int | None = None
     max_steps: int = 20_000
+    n_chains: int = 4
+    n_warmup: int = 1000
+    max_draws: int = 4000
     progress: bool = True
     backend_path: str | None = None
     resume: bool = False
@@ -55,7 +63,7 @@ class CampaignFit:
     metric_draws: np.ndarray  # (draws, metrics)
     diagnostics: dict
     rmse_arcsec: dict  # per run, at the MAP
-    tree: object = None  # ArviZ DataTree (emcee) or None
+    tree: object = None  # ArviZ DataTree (emcee or NUTS) or None
     sample_result: object = None
     #: SI parameter values (name → (draws, ...)) of the draws behind ``metric_draws``, row by
     #: row: further model quantities of the same draws (e.g. K_d at any condition) use these.
@@ -128,35 +136,118 @@ def sampler_kwargs(options: FitOptions, seed: int) -> dict:
             "backend_path": options.backend_path, "resume": options.resume}
 
 
+SAMPLERS = ("auto", "emcee", "nuts", "laplace")
+
+
+def nuts_kwargs(options: FitOptions, seed: int) -> dict:
+    """The keyword arguments of ``run_nuts`` for a fit with ``options`` and ``seed`` (its
+    resume file next to emcee's: ``chain.h5`` → ``chain-nuts.npz``)."""
+    path = None
+    if options.backend_path is not None:
+        path = str(Path(options.backend_path).with_name(Path(options.backend_path).stem + "-nuts.npz"))
+    return {"seed": seed, "n_chains": options.n_chains, "n_warmup": options.n_warmup, "max_draws": options.max_draws,
+            "progress": options.progress, "backend_path": path, "resume": options.resume}
+
+
+def auto_switch_rule(max_steps: int, tau_factor: float = 50.0):
+    """The rule of ``--sampler auto``, called by emcee at every check with (steps so far, τ
+    per parameter): a reason to leave emcee for NUTS when the chain it needs —
+    ``tau_factor`` · τ_max steps, τ estimated on the chain so far (an estimate that grows
+    with the chain, so the rule errs on emcee's side) — is longer than the step budget."""
+    def rule(n_steps: int, tau: np.ndarray) -> str | None:
+        tau_max = float(np.max(tau))
+        need = tau_factor * tau_max
+        if need > max_steps:
+            what = "never moved" if not np.isfinite(tau_max) else f"τ_max = {tau_max:.0f} steps"
+            return (f"emcee after {n_steps} steps: {what}, so convergence needs "
+                    f"{tau_factor:g} × τ_max = {need:.0f} steps, more than the budget of {max_steps}")
+        return None
+
+    return rule
+
+
+def sample_posterior(problem, map_result, options: FitOptions, seed: int):
+    """(sample result, sampler used, reason of the choice) for the MCMC samplers.
+
+    ``auto``: emcee with :func:`auto_switch_rule` checked at every 500-step check; when it
+    fires — or emcee ends unconverged anyway — NUTS from the same Laplace start. The emcee
+    run's own τ and steps are in the reason."""
+    from ..sample import run_nuts, run_sampler
+
+    if options.sampler == "emcee":
+        return run_sampler(problem, map_result, **sampler_kwargs(options, seed)), "emcee", "asked for (--sampler emcee)"
+    if options.sampler == "nuts":
+        return run_nuts(problem, map_result, **nuts_kwargs(options, seed)), "nuts", "asked for (--sampler nuts)"
+    with warnings.catch_warnings():
+        from ..sample import ConvergenceWarning
+
+        warnings.simplefilter("ignore", ConvergenceWarning)  # a switch to NUTS is not a failure
+        first = run_sampler(problem, map_result, **sampler_kwargs(options, seed),
+                            stop_when=auto_switch_rule(options.max_steps))
+    if first.converged:
+        return first, "emcee", (f"auto: emcee converged in {first.n_steps} steps "
+                                f"(τ_max = {first.tau_max:.1f}, within the budget of {options.max_steps})")
+    why = first.reason if first.stopped_early else f"emcee did not converge: {first.reason}"
+    res = run_nuts(problem, map_result, **nuts_kwargs(options, seed))
+    res = dataclasses.replace(res, preceded_by={"sampler": "emcee", "n_steps": int(first.n_steps),
+                                                "n_walkers": int(first.n_walkers), "tau_max": float(first.tau_max)})
+    return res, "nuts", f"auto: NUTS, because {why}"
+
+
 def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_result, seed: int,
                sample_result=None) -> CampaignFit:
     """Everything after the MAP: posterior (emcee or Laplace draws), derived metrics, RMSE —
     for a ``map_result`` of ``problem`` (``prepare_fit``) found one unit at a time or many at
     once (``torsionfit.batch``). ``sample_result``: the emcee run of ``run_sampler`` with
     ``sampler_kwargs(options, seed)``, when it was made already (the batch samples many units
-    together); else it is made here."""
+    together); else it is made here (:func:`sample_posterior`)."""
     names = [r.name for r in campaign.runs]
     rng = np.random.default_rng(seed)
     tree = None
-    if options.sampler == "emcee":
-        from ..sample import convergence_summary, run_sampler, to_datatree
+    if options.sampler not in SAMPLERS:
+        raise InputError(f"sampler must be one of {', '.join(SAMPLERS)}, got {options.sampler!r}")
+    if options.sampler != "laplace":
+        from ..sample import convergence_summary, to_datatree
 
         if sample_result is None:
-            sample_result = run_sampler(problem, map_result, **sampler_kwargs(options, seed))
+            sample_result, used, choice = sample_posterior(problem, map_result, options, seed)
+        else:
+            used, choice = sample_result.sampler, "sampled with the other units of its shape (batch)"
         chain = np.asarray(sample_result.chain)
         draws_u = chain.reshape(-1, chain.shape[-1])
         tree = to_datatree(problem, sample_result, names, seed=seed)
         conv = convergence_summary(tree)
-        diagnostics = {
-            "sampler": "emcee",
-            "converged": bool(sample_result.converged and conv["rhat_max"] < 1.01 + 0.04),
-            "rhat_max": conv["rhat_max"],
-            "ess_min": conv["ess_min"],
-            "tau_max": float(np.max(sample_result.tau)),
-            "n_steps": int(sample_result.n_steps),
-            "n_walkers": int(chain.shape[1]),
-            "reason": sample_result.reason or "",
-        }
+        diagnostics = {"sampler": used, "sampler_choice_reason": choice}
+        if used == "nuts":
+            # the rule (R̂ ≤ 1.01, bulk and tail ESS ≥ 400 for every entry of u, no divergence)
+            # was checked on u by run_nuts; R̂ and ESS are rank based, so they hold for the
+            # physical values (monotone maps of u) alike
+            diagnostics.update({
+                "converged": bool(sample_result.converged),
+                "rhat_max": conv["rhat_max"],
+                "ess_min": conv["ess_min"],
+                "ess_tail_min": float(np.nanmin(sample_result.ess_tail)),
+                "n_divergent": sample_result.n_divergent,
+                "tau_max": float(np.max(sample_result.tau)),
+                "n_steps": int(sample_result.n_steps),
+                "n_warmup": int(sample_result.n_warmup),
+                "n_chains": int(chain.shape[1]),
+                "n_draws": int(chain.shape[0]),
+                "n_grad_evals": int(sample_result.n_grad_evals),
+                "step_size": [float(x) for x in sample_result.step_size],
+                "mean_tree_depth": float(np.mean(sample_result.tree_depth)),
+                "reason": sample_result.reason or "",
+            })
+        else:
+            diagnostics.update({
+                "converged": bool(sample_result.converged and conv["rhat_max"] < 1.01 + 0.04),
+                "rhat_max": conv["rhat_max"],
+                "ess_min": conv["ess_min"],
+                "tau_max": float(np.max(sample_result.tau)),
+                "n_steps": int(sample_result.n_steps),
+                "n_walkers": int(chain.shape[1]),
+                "reason": sample_result.reason or "",
+            })
     elif options.sampler == "laplace":
         cov = 0.5 * (map_result.cov + map_result.cov.T)
         draws_u = rng.multivariate_normal(map_result.u, cov, size=options.laplace_draws, method="eigh")
@@ -167,8 +258,6 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
             "ess_min": float(options.laplace_draws),
             "reason": "" if map_result.converged else f"MAP did not converge: {map_result.message}",
         }
-    else:
-        raise InputError(f"sampler must be 'emcee' or 'laplace', got {options.sampler!r}")
     diagnostics["map_converged"] = bool(map_result.converged)
     diagnostics["map_message"] = map_result.message
 
@@ -239,13 +328,16 @@ def summary_table(doc: dict) -> str:
     conv = "converged" if d["converged"] else f"NOT CONVERGED ({d.get('reason', '')})"
     rhat = "n/a" if d.get("rhat_max") is None else f"{d['rhat_max']:.3f}"
     ess = "n/a" if d.get("ess_min") is None else f"{d['ess_min']:.0f}"
-    lines.append(f"sampler {d['sampler']}: {conv}; R-hat max {rhat}, ESS min {ess}")
+    extra = f", {d['n_divergent']} divergent" if "n_divergent" in d else ""
+    lines.append(f"sampler {d['sampler']}: {conv}; R-hat max {rhat}, ESS min {ess}{extra}")
+    if d.get("sampler_choice_reason"):
+        lines.append(f"sampler choice: {d['sampler_choice_reason']}")
     lines.append("RMSE: " + ", ".join(f"{k} {v['value']:.3g}″" for k, v in doc["rmse"].items()))
     return "\n".join(lines)
 
 
 def write_fit(fit: CampaignFit, out_dir) -> dict:
-    """Write ``fit.json`` (and ``posterior.nc`` with emcee) to ``out_dir``; return fit.json."""
+    """Write ``fit.json`` (and ``posterior.nc`` with emcee or NUTS) to ``out_dir``; return fit.json."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     doc = fit_json(fit)

@@ -1,4 +1,4 @@
-"""Posterior sampling (emcee) and the ArviZ tree of a fit (DESIGN §2, §5.2)."""
+"""Posterior sampling (emcee, NUTS) and the ArviZ tree of a fit (DESIGN §2, §5.2)."""
 
 from ._emcee import (
     BufferedHDFBackend as BufferedHDFBackend,
@@ -6,6 +6,12 @@ from ._emcee import (
     SampleResult as SampleResult,
     default_n_walkers as default_n_walkers,
     run_sampler as run_sampler,
+)
+from ._nuts import (
+    Coordinates as Coordinates,
+    NutsResult as NutsResult,
+    chain_diagnostics as chain_diagnostics,
+    run_nuts as run_nuts,
 )
 from ._tree import (
     convergence_summary as convergence_summary,

@@ -103,6 +103,9 @@ class SampleResult:
     moves: str = MOVES_DESCRIPTION
     seed: int | None = None
     tau_history: tuple = field(default_factory=tuple)  # (n_steps, max τ) at every check
+    stopped_early: bool = False  # ``stop_when`` ended the run (``reason`` says why)
+
+    sampler = "emcee"  # class attribute, not a field: the sampler that made the draws
 
     @property
     def n_walkers(self) -> int:
@@ -363,7 +366,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
                 max_steps: int = 20_000, check_every: int = 500, tau_factor: float = 50.0,
                 min_steps: int = 1000, tau_rtol: float = 0.01,
                 backend_path: str | os.PathLike | None = None, resume: bool = False,
-                progress: bool = True, evaluate=None) -> SampleResult:
+                progress: bool = True, evaluate=None, stop_when=None) -> SampleResult:
     """Sample the posterior of ``problem`` with emcee, started from ``map_result``'s Laplace
     approximation (``.u``, ``.cov``; ``.names`` used for messages and the result).
 
@@ -376,6 +379,9 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
     ``converged=False`` and a :class:`ConvergenceWarning`. ``evaluate`` maps a
     (n_walkers/2, dim) chunk of u to its log-densities (default: ``batch_log_density`` of
     ``problem``; ``torsionfit.batch`` passes one shared by many units' samplers).
+    ``stop_when(n_steps, tau)``, called at every check of an unconverged chain, may return a
+    reason to give up: the run ends there with ``converged=False``, ``stopped_early=True``
+    and that reason, without a warning (``--sampler auto`` hands the posterior to NUTS).
     """
     dim = int(problem.dim)
     if check_every < 1 or max_steps < 1:
@@ -423,7 +429,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
         start = initial_walkers(problem, map_result.u, map_result.cov, n_walkers, rng, evaluate=evaluate)
         sampler.random_state = np.random.RandomState(seed).get_state()
 
-    converged, reason, history = False, "", []
+    converged, reason, history, stopped = False, "", [], False
     tau = tau_prev
     while sampler.iteration < max_steps:
         # blocks end on multiples of check_every, so a resumed run checks (and retires the
@@ -444,12 +450,17 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
                                    min_steps, names)
         if converged:
             break
+        if stop_when is not None:
+            why = stop_when(int(sampler.iteration), tau)
+            if why:
+                reason, stopped = why, True
+                break
         tau_prev = tau
     if not history:  # resumed a chain that already had max_steps steps: judge it as it is
         tau = _tau(sampler)
         converged, reason = _check(tau, None, sampler.iteration, tau_factor, tau_rtol, min_steps, names)
     n_steps = int(sampler.iteration)
-    if not converged:
+    if not converged and not stopped:
         reason = f"not converged after {n_steps} steps (max_steps = {max_steps}): {reason}"
         warnings.warn(f"emcee: {reason}", ConvergenceWarning, stacklevel=2)
 
@@ -469,6 +480,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
         acceptance_rate=_acceptance_windows(np.asarray(full), burn, thin),
         seed=seed,
         tau_history=tuple(history),
+        stopped_early=stopped,
         moves=MOVES_DESCRIPTION + (f"; LaplaceMove retired at step {check_every} (acceptance "
                                    f"{laplace.acceptance:.3f} < {RETIRE_BELOW}), its share to DEMove"
                                    if laplace.retired else ""),

@@ -26,9 +26,13 @@ emcee's walkers are the chains, kept steps the draws):
   are conditional on the previous sample).
 - ``observed_data``: the measured angle per run (rad), same names and dims.
 - ``sample_stats`` (chain, draw): ``lp`` (log posterior density of u, up to a constant) and
-  ``acceptance_rate`` (share of the steps in the draw's thinning window in which the walker
-  moved); attrs ``tau_max``, ``n_steps``, ``burn_in``, ``thin``, ``converged`` (0/1),
-  ``reason``, ``tau`` (JSON: τ per entry of u), ``acceptance_fraction`` (per walker).
+  ``acceptance_rate`` (emcee: share of the steps in the draw's thinning window in which the
+  walker moved; NUTS: mean Metropolis acceptance over the draw's trajectory); with NUTS also
+  ``diverging`` (bool), ``tree_depth`` and ``n_steps`` (leapfrog steps, = gradient
+  evaluations); attrs ``sampler`` (``emcee`` / ``nuts``), ``tau_max``, ``n_steps``,
+  ``burn_in``, ``thin``, ``converged`` (0/1), ``reason``, ``tau`` (JSON: τ per entry of u),
+  ``acceptance_fraction`` (per walker or chain); with NUTS ``step_size`` (per chain),
+  ``n_warmup``, ``n_divergent``, ``n_grad_evals``.
 
 PSIS-LOO: the log-likelihood holds a subset of the draws, so ArviZ's default relative
 efficiency (posterior ESS / number of log-likelihood draws) would be wrong; the group's attr
@@ -206,7 +210,7 @@ def to_datatree(problem, sample_result: SampleResult, run_names, observed_names=
     hyst_runs = [r for r, k in zip(run_names, kinds) if k == "hysteresis"]
     ar1_runs = [r for r, a in zip(run_names, problem.ar1) if a]
 
-    # chain = walker, draw = kept step
+    # chain = walker (emcee) or chain (NUTS), draw = kept step
     chain = np.transpose(np.asarray(sample_result.chain, dtype=float), (1, 0, 2))
     n_chain, n_draw, dim = chain.shape
     if dim != problem.dim:
@@ -284,7 +288,13 @@ def to_datatree(problem, sample_result: SampleResult, run_names, observed_names=
         ess_mean = float(n_total)
     reff = float(1.0 / (1.0 + m / min(ess_mean, n_total)))
 
-    lib = dict(inference_library="emcee", inference_library_version=emcee.__version__)
+    nuts = getattr(sample_result, "sampler", "emcee") == "nuts"
+    if nuts:
+        import blackjax
+
+        lib = dict(inference_library="blackjax", inference_library_version=getattr(blackjax, "__version__", "?"))
+    else:
+        lib = dict(inference_library="emcee", inference_library_version=emcee.__version__)
     groups = {}
     sample_dims = ["chain", "draw"]
     # check_conventions=False: an ensemble often has more walkers (chains) than kept draws,
@@ -301,8 +311,15 @@ def to_datatree(problem, sample_result: SampleResult, run_names, observed_names=
     stats = {"lp": np.asarray(s.log_prob, dtype=float).T}
     if s.acceptance_rate is not None:
         stats["acceptance_rate"] = np.asarray(s.acceptance_rate, dtype=float).T
+    nuts_attrs = {}
+    if nuts:
+        stats["diverging"] = np.asarray(s.diverging, dtype=bool).T
+        stats["tree_depth"] = np.asarray(s.tree_depth, dtype=int).T
+        stats["n_steps"] = np.asarray(s.n_leapfrog, dtype=int).T
+        nuts_attrs = {"step_size": np.asarray(s.step_size, dtype=float), "n_warmup": int(s.n_warmup),
+                      "n_divergent": int(s.n_divergent), "n_grad_evals": int(s.n_grad_evals)}
     groups["sample_stats"] = arviz_base.dict_to_dataset(stats, **conv, attrs={
-        **lib,
+        **lib, **nuts_attrs, "sampler": "nuts" if nuts else "emcee",
         "tau_max": float(np.max(s.tau)),
         "tau": _json({n: float(t) for n, t in zip(s.names, np.asarray(s.tau))}),
         "n_steps": int(s.n_steps), "burn_in": int(s.burn_in), "thin": int(s.thin),
@@ -313,7 +330,13 @@ def to_datatree(problem, sample_result: SampleResult, run_names, observed_names=
     groups["sample_stats"]["lp"].attrs.update(units="1", description="log posterior density of u (up to a constant)")
     if "acceptance_rate" in groups["sample_stats"]:
         groups["sample_stats"]["acceptance_rate"].attrs.update(
-            units="1", description="share of the steps in the draw's thinning window in which the walker moved")
+            units="1", description="mean Metropolis acceptance probability over the draw's trajectory" if nuts else
+            "share of the steps in the draw's thinning window in which the walker moved")
+    if nuts:
+        ss = groups["sample_stats"]
+        ss["diverging"].attrs.update(description="divergent transition (energy error above the threshold)")
+        ss["tree_depth"].attrs.update(units="1", description="number of trajectory doublings")
+        ss["n_steps"].attrs.update(units="1", description="leapfrog steps (gradient evaluations) of the draw")
 
     for g in ("posterior", "posterior_predictive", "log_likelihood", "observed_data"):
         for name, attrs in var_attrs.items():
@@ -328,7 +351,8 @@ def to_datatree(problem, sample_result: SampleResult, run_names, observed_names=
         created_by="torsionfit", run_variables=_json(dict(zip(run_names, var_names))),
         run_kinds=_json(dict(zip(run_names, kinds))), seed=int(seed),
         sampler_seed=-1 if s.seed is None else int(s.seed), linear_parameters=linear,
-        draws="chain = emcee walker, draw = kept step (step = burn_in + thin·(draw + 1) − 1)",
+        draws=("chain = NUTS chain, draw = draw after the warm-up of burn_in steps" if nuts else
+               "chain = emcee walker, draw = kept step (step = burn_in + thin·(draw + 1) − 1)"),
     )
     return tree
 

@@ -1,0 +1,436 @@
+"""Posterior sampling with NUTS (BlackJAX): a gradient-based sampler for the posteriors an
+affine-invariant ensemble crosses too slowly (long, curved, funnel-shaped; DESIGN §2).
+
+It samples the same density as emcee — ``problem.log_density(u)`` over the unconstrained
+vector u, non-finite values mapped to −inf — and returns a :class:`NutsResult`, a
+:class:`~torsionfit.sample.SampleResult` with NUTS's own statistics, so that
+``report.finish_fit`` and ``sample.to_datatree`` treat both samplers alike.
+
+Choices, and why:
+
+- **Gradient**: exact, by JAX reverse mode through the model (the Dahl recurrence is a
+  ``lax.scan``). Where the log-density is not finite its gradient is set to 0 (a custom VJP:
+  one value-and-gradient pass, as BlackJAX's own), so a trajectory that leaves the support
+  ends as a divergence, never with NaN coordinates.
+- **Chains**: ``n_chains`` (4) independent chains, vmapped (one compiled program evaluates
+  all of them), started from draws of the MAP's Laplace approximation N(u_MAP, cov) — cov
+  regularised as for emcee's walkers, each draw re-drawn until finite. Independent chains
+  from dispersed starts are what R̂ needs (emcee's walkers are not independent).
+- **Adaptation**: NUTS moves in coordinates whitened by the Laplace approximation (and, for
+  the noise parameters, reshaped: :class:`Coordinates`), so the Laplace covariance is the
+  starting mass matrix and the posterior is about N(0, I); BlackJAX's ``window_adaptation``
+  (Stan's schedule: a fast window for the step size, doubling slow windows for the mass
+  matrix, a final fast window) then adapts the step size and a **dense** mass matrix per
+  chain, each window's estimate shrunk towards the previous one with a pseudo-count of
+  :data:`SEED_PSEUDO_COUNT` draws; target acceptance 0.8.
+- **Budget**: after the warm-up, draws in blocks; the chains are checked after
+  ``initial_draws`` draws each and their length doubled until converged or ``max_draws``.
+  Every draw after the warm-up is kept (no thinning: NUTS draws are nearly independent).
+- **Convergence** (the rule the fit reports): every entry of u has rank-normalised split R̂ ≤
+  ``rhat_max`` (1.01), bulk and tail ESS ≥ ``min_ess`` (400), and no divergent transition
+  after the warm-up. Divergences mean the sampler could not follow the posterior's
+  curvature somewhere, so the draws may be biased there: the run is then reported not
+  converged, whatever R̂ and ESS say. Monotone maps (u → SI values) leave rank-normalised R̂
+  and ESS unchanged, so the rule on u is the rule on the physical parameters.
+- **Resume**: with ``backend_path`` the state after every block (positions, step sizes, mass
+  matrices, random key, draws so far) is written to a ``.npz`` file; ``resume=True``
+  continues from it and gives the same draws as an uninterrupted run.
+- ``tau`` of the result: the integrated autocorrelation time per entry of u, in draws,
+  estimated as (chains · draws) / bulk ESS.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+import warnings
+from dataclasses import dataclass
+from functools import partial
+
+import arviz_stats
+import blackjax
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import xarray as xr
+
+from ._emcee import ConvergenceWarning, SampleResult, _regularised_cov, initial_walkers
+
+__all__ = ["NutsResult", "chain_diagnostics", "run_nuts"]
+
+#: pseudo-count (draws) with which the first slow window keeps the Laplace covariance
+SEED_PSEUDO_COUNT = 25.0
+#: draws per compiled block after the warm-up (one compilation per problem shape)
+BLOCK = 100
+
+
+@dataclass(frozen=True, eq=False)
+class NutsResult(SampleResult):
+    """NUTS draws of u, laid out as emcee's (draws, chains, dim), with NUTS's statistics.
+
+    ``diverging``, ``tree_depth``, ``n_leapfrog`` (draws, chains): divergent transition,
+    number of trajectory doublings and leapfrog steps (= gradient evaluations) of each draw;
+    ``acceptance_rate`` (draws, chains): mean Metropolis acceptance over the draw's
+    trajectory. ``step_size`` (chains,), ``inverse_mass_matrix`` (chains, dim, dim): the
+    adapted values. ``n_warmup`` warm-up steps per chain (``burn_in``); ``n_grad_evals``
+    gradient evaluations over all chains, warm-up included. ``rhat``, ``ess_bulk``,
+    ``ess_tail`` per entry of u.
+    """
+
+    diverging: np.ndarray | None = None
+    tree_depth: np.ndarray | None = None
+    n_leapfrog: np.ndarray | None = None
+    step_size: np.ndarray | None = None
+    inverse_mass_matrix: np.ndarray | None = None
+    n_warmup: int = 0
+    n_grad_evals: int = 0
+    target_accept: float = 0.8
+    rhat: np.ndarray | None = None
+    ess_bulk: np.ndarray | None = None
+    ess_tail: np.ndarray | None = None
+    elapsed_s: float = 0.0
+    preceded_by: dict | None = None  # auto: the emcee run before the switch (n_steps, n_walkers, ...)
+
+    sampler = "nuts"
+
+    @property
+    def n_divergent(self) -> int:
+        return int(np.sum(self.diverging)) if self.diverging is not None else 0
+
+
+# --- the sampler's coordinates ---------------------------------------------------------------
+class Coordinates(eqx.Module):
+    """The coordinates w NUTS moves in, and their map to the problem's u (element-wise,
+    monotone): the identity, except for the noise parameters of a :class:`FitProblem`.
+
+    - excess noise s_r (u = log s_r; σ_r = √(s_r² + floor_r²)): s_r = c_r · softplus(w) with
+      c_r = floor_r · (2 / N_r)^¼, the resolution of s at which the data see it (σ² is known
+      to a relative 1/√(N/2), so s² to floor² · √(2/N)). Where s ≪ c the data hardly see s:
+      in log s the posterior is the prior's tail on the left and an exponentially steep wall
+      on the right (σ starts to grow) — a curvature no single step size follows (measured on
+      the small test campaign: −290 per unit of log s at the wall, a Laplace sd of 0.6, and
+      NUTS's adapted step fell to 0.01 with 360 leapfrog steps per draw). In w the left side
+      stays log-like and the right side is linear in s, where the likelihood is smooth.
+    - AR(1) coefficient ρ (u = logit ρ), for the same wall where ρ is near 0 (white noise):
+      ρ = tanh(c_r · softplus(w)), c_r = 1/√N_r, the resolution of ρ.
+
+    The log-density in w adds log |du/dw| (by JAX, element-wise).
+
+    NUTS itself moves in z, w whitened by the Laplace approximation: w = w_MAP + L z, L the
+    Cholesky factor of the Laplace covariance mapped to w (:meth:`whitened`; a constant
+    Jacobian). The posterior is then about N(0, I), and so on the scale that the warm-up's
+    regularisation of the mass matrix assumes (Stan's: a shrinkage towards 10⁻³ · I, which in
+    u — where log stiffness has a posterior sd of 2·10⁻⁴ — inflated the stiffness variance a
+    thousandfold: measured, a step size of 0.006 and 600 leapfrog steps per draw)."""
+
+    noise: tuple = eqx.field(static=True)  # (first, end) indices of the noise levels in u
+    ar1: tuple = eqx.field(static=True)  # (first, end) indices of the AR(1) logits
+    log_noise_scale: jnp.ndarray  # log c_r per run
+    ar1_scale: jnp.ndarray  # c_r per AR(1) run
+    shift: jnp.ndarray | None = None  # w_MAP (None: z = w)
+    chol: jnp.ndarray | None = None  # L
+
+    @staticmethod
+    def of(problem) -> "Coordinates":
+        if not all(hasattr(problem, a) for a in ("floors", "n_nonlinear", "n_runs", "n_ar1", "y", "ar1")):
+            return Coordinates((0, 0), (0, 0), jnp.zeros(0), jnp.zeros(0))
+        n, r = int(problem.n_nonlinear), int(problem.n_runs)
+        counts = np.array([len(y) for y in problem.y], dtype=float)
+        floors = np.maximum(np.asarray(problem.floors, dtype=float), 1e-300)
+        ar1_counts = counts[np.flatnonzero(np.asarray(problem.ar1, dtype=bool))]
+        return Coordinates((n, n + r), (n + r, n + r + int(problem.n_ar1)),
+                           jnp.asarray(np.log(floors) + 0.25 * np.log(2.0 / counts)),
+                           jnp.asarray(1.0 / np.sqrt(ar1_counts)))
+
+    def whitened(self, u_map, cov_u) -> "Coordinates":
+        """These coordinates, whitened by N(u_map, cov_u) (cov regularised, mapped to w)."""
+        w_map = self.from_u(jnp.asarray(u_map, dtype=float))
+        jac = np.asarray(self.jacobian_diag(w_map))
+        jac = np.where(np.isfinite(jac) & (np.abs(jac) > 0), jac, 1.0)
+        cov_w = _regularised_cov(np.asarray(cov_u, dtype=float) / np.outer(jac, jac))
+        return eqx.tree_at(lambda c: (c.shift, c.chol), self, (w_map, jnp.asarray(np.linalg.cholesky(cov_w))),
+                           is_leaf=lambda x: x is None)
+
+    @staticmethod
+    def _noise_u(w, log_c):
+        return log_c + jnp.log(jax.nn.softplus(w))
+
+    @staticmethod
+    def _ar1_u(w, c):
+        x = c * jax.nn.softplus(w)
+        # logit(tanh x) = log tanh x − log(1 − tanh x), both computed without cancellation
+        log_tanh = jnp.log(-jnp.expm1(-2 * x)) - jnp.log1p(jnp.exp(-2 * x))
+        log_one_minus = jnp.log(2.0) - jax.nn.softplus(2 * x)
+        return log_tanh - log_one_minus
+
+    @staticmethod
+    def _softplus_inv(x):
+        return x + jnp.log(-jnp.expm1(-x))
+
+    def to_u(self, z):
+        """(u, log |du/dz| summed, up to the constant of the whitening)."""
+        w = z if self.chol is None else self.shift + self.chol @ z
+        a, b = self.noise
+        c, d = self.ar1
+        u, logjac = w, 0.0
+        if b > a:
+            ws = w[a:b]
+            u = u.at[a:b].set(jax.vmap(self._noise_u)(ws, self.log_noise_scale))
+            logjac = logjac + jnp.sum(jnp.log(jnp.abs(jax.vmap(jax.grad(self._noise_u))(ws, self.log_noise_scale))))
+        if d > c:
+            wr = w[c:d]
+            u = u.at[c:d].set(jax.vmap(self._ar1_u)(wr, self.ar1_scale))
+            logjac = logjac + jnp.sum(jnp.log(jnp.abs(jax.vmap(jax.grad(self._ar1_u))(wr, self.ar1_scale))))
+        return u, logjac
+
+    def from_u(self, u):
+        """w of u (the inverse of :meth:`to_u`)."""
+        a, b = self.noise
+        c, d = self.ar1
+        w = u
+        if b > a:
+            w = w.at[a:b].set(self._softplus_inv(jnp.exp(u[a:b] - self.log_noise_scale)))
+        if d > c:
+            rho = jax.nn.sigmoid(u[c:d])
+            atanh = 0.5 * (jnp.log1p(rho) + jax.nn.softplus(u[c:d]))  # 1 − ρ = sigmoid(−u)
+            w = w.at[c:d].set(self._softplus_inv(atanh / self.ar1_scale))
+        if self.chol is None:
+            return w
+        return jax.scipy.linalg.solve_triangular(self.chol, w - self.shift, lower=True)
+
+    def jacobian_diag(self, w):
+        """du/dw per entry (1 outside the noise parameters) of the unwhitened coordinates."""
+        plain = eqx.tree_at(lambda c: (c.shift, c.chol), self, (None, None), is_leaf=lambda x: x is None)
+        return jax.jvp(lambda v: plain.to_u(v)[0], (w,), (jnp.ones_like(w),))[1]
+
+
+# --- the log-density with a safe gradient --------------------------------------------------
+def _finite_density(problem, coords, w):
+    u, logjac = coords.to_u(w)
+    lp = problem.log_density(u) + logjac
+    return jnp.where(jnp.isfinite(lp), lp, -jnp.inf)
+
+
+@partial(jax.custom_vjp, nondiff_argnums=(0,))
+def _safe_log_density(fn, u):
+    return fn(u)
+
+
+def _safe_fwd(fn, u):
+    lp, g = jax.value_and_grad(fn)(u)
+    ok = jnp.isfinite(lp) & jnp.all(jnp.isfinite(g))
+    return jnp.where(ok, lp, -jnp.inf), jnp.where(ok, g, 0.0)
+
+
+def _safe_bwd(fn, g, ct):
+    return (ct * g,)
+
+
+_safe_log_density.defvjp(_safe_fwd, _safe_bwd)
+
+
+def _log_density_fn(problem, coords):
+    """w → log-density (−inf off the support) with a gradient that is never NaN."""
+    inner = partial(_finite_density, problem, coords)
+    return lambda w: _safe_log_density(inner, w)
+
+
+# --- compiled pieces (problem passed as an argument: its arrays are not baked into the program) --
+_INFO = blackjax.adaptation.base.get_filter_adapt_info_fn(
+    info_keys={"acceptance_rate", "is_divergent", "num_integration_steps"})
+
+
+@eqx.filter_jit
+def _warmup(problem, coords, keys, positions, imm0, step0, num_steps: int, target_accept: float):
+    """Window adaptation per chain (vmapped): (last states, step sizes, inverse mass matrices,
+    leapfrog steps per chain over the warm-up)."""
+    logdensity = _log_density_fn(problem, coords)
+
+    def one(key, position, imm):
+        adapt = blackjax.window_adaptation(
+            blackjax.nuts, logdensity, is_mass_matrix_diagonal=False, initial_inverse_mass_matrix=imm,
+            imm_shrinkage_to_previous=SEED_PSEUDO_COUNT, initial_step_size=step0,
+            target_acceptance_rate=target_accept, adaptation_info_fn=_INFO)
+        (state, params), info = adapt.run(key, position, num_steps)
+        return state, params["step_size"], params["inverse_mass_matrix"], jnp.sum(info.info.num_integration_steps)
+
+    return jax.vmap(one, in_axes=(0, 0, None))(keys, positions, imm0)
+
+
+@eqx.filter_jit
+def _sample_block(problem, coords, key, states, step_size, imm, n: int):
+    """``n`` NUTS steps of every chain (vmapped over chains, scanned over steps)."""
+    logdensity = _log_density_fn(problem, coords)
+    n_chains = step_size.shape[0]
+
+    def step(states, key):
+        keys = jax.random.split(key, n_chains)
+
+        def one(k, s, eps, m):
+            return blackjax.nuts(logdensity, eps, m).step(k, s)
+
+        new, info = jax.vmap(one)(keys, states, step_size, imm)
+        u, logjac = jax.vmap(coords.to_u)(new.position)
+        out = (u, new.logdensity - logjac, info.is_divergent, info.num_trajectory_expansions,
+               info.num_integration_steps, info.acceptance_rate)
+        return new, out
+
+    return jax.lax.scan(step, states, jax.random.split(key, n))
+
+
+@eqx.filter_jit
+def _init_states(problem, coords, positions):
+    return jax.vmap(lambda p: blackjax.nuts.init(p, _log_density_fn(problem, coords)))(positions)
+
+
+# --- diagnostics --------------------------------------------------------------------------------
+def chain_diagnostics(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(R̂, bulk ESS, tail ESS) per entry of u from draws (draws, chains, dim), by
+    ``arviz_stats`` (rank-normalised split R̂; NaN for an entry that never moved)."""
+    da = xr.DataArray(np.transpose(np.asarray(chain, dtype=float), (1, 0, 2)), dims=("chain", "draw", "u"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        rhat = np.asarray(arviz_stats.rhat(da).values, dtype=float)
+        bulk = np.asarray(arviz_stats.ess(da, method="bulk").values, dtype=float)
+        tail = np.asarray(arviz_stats.ess(da, method="tail").values, dtype=float)
+    return rhat, bulk, tail
+
+
+def _check(rhat, bulk, tail, n_div, n_draws, rhat_max, min_ess, names) -> tuple[bool, str]:
+    """(converged, reason): the rule of the module docstring; the reason names the worst entry."""
+    def who(i):
+        return names[i] if i < len(names) else f"u[{i}]"
+
+    if n_div:
+        return False, (f"{n_div} divergent transitions after the warm-up (the sampler could not "
+                       "follow the posterior's curvature; its draws may be biased)")
+    r = np.where(np.isfinite(rhat), rhat, np.inf)
+    if np.max(r) > rhat_max:
+        i = int(np.argmax(r))
+        return False, f"R̂ = {r[i]:.3f} > {rhat_max} for {who(i)} after {n_draws} draws per chain"
+    e = np.minimum(np.where(np.isfinite(bulk), bulk, 0.0), np.where(np.isfinite(tail), tail, 0.0))
+    if np.min(e) < min_ess:
+        i = int(np.argmin(e))
+        kind = "bulk" if bulk[i] <= tail[i] else "tail"
+        return False, f"{kind} ESS = {e[i]:.0f} < {min_ess} for {who(i)} after {n_draws} draws per chain"
+    return True, ""
+
+
+# --- resume file -----------------------------------------------------------------------------
+def _save(path, **arrays) -> None:
+    tmp = f"{path}.tmp.npz"
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
+
+
+def _load(path) -> dict | None:
+    if not os.path.exists(path):
+        return None
+    with np.load(path, allow_pickle=False) as f:
+        return {k: f[k] for k in f.files}
+
+
+# --- the sampler ---------------------------------------------------------------------------
+def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int = 1000,
+             initial_draws: int = 500, max_draws: int = 4000, target_accept: float = 0.8,
+             rhat_max: float = 1.01, min_ess: float = 400.0, backend_path=None, resume: bool = False,
+             progress: bool = True) -> NutsResult:
+    """Sample the posterior of ``problem`` with NUTS, started from ``map_result``'s Laplace
+    approximation (``.u``, ``.cov``, ``.names``): ``n_chains`` chains, ``n_warmup`` adaptation
+    steps each, then ``initial_draws`` draws per chain, doubled until the convergence rule
+    (module docstring) holds or ``max_draws`` is reached — then ``converged=False`` with the
+    reason and a :class:`ConvergenceWarning`. ``backend_path``: a ``.npz`` file holding the
+    state after every block; ``resume=True`` continues from it (same draws as a run without
+    interruption; a file of another problem or other settings is an error)."""
+    t0 = time.perf_counter()
+    dim = int(problem.dim)
+    names = tuple(getattr(map_result, "names", None) or (f"u[{i}]" for i in range(dim)))
+    if n_chains < 2:
+        raise ValueError("n_chains must be at least 2 (R̂ compares chains)")
+    if initial_draws < BLOCK or max_draws < initial_draws:
+        raise ValueError(f"need {BLOCK} ≤ initial_draws ≤ max_draws")
+    say = (lambda text: print(f"[nuts] {text}", file=sys.stderr, flush=True)) if progress else (lambda text: None)
+    settings = np.array([seed, n_chains, n_warmup, dim, target_accept], dtype=float)
+
+    stored = _load(backend_path) if (backend_path is not None and resume) else None
+    if stored is not None and not np.array_equal(stored["settings"], settings):
+        raise ValueError(f"{backend_path}: the stored run has other settings or another problem "
+                         f"(seed, chains, warm-up, dim, target: {stored['settings'].tolist()})")
+    coords = Coordinates.of(problem).whitened(map_result.u, map_result.cov)
+    key = jax.random.PRNGKey(seed)
+    k_warm, k_sample = jax.random.split(key)
+    if stored is None:
+        cov = _regularised_cov(map_result.cov)
+        start = initial_walkers(problem, map_result.u, cov, n_chains, np.random.default_rng(seed))
+        # whitened by the Laplace approximation, the first inverse mass matrix is I; NUTS's
+        # step size for a well-preconditioned Gaussian in d dimensions is of order d^(-1/4)
+        start_w = jax.vmap(coords.from_u)(jnp.asarray(start))
+        say(f"warm-up: {n_chains} chains × {n_warmup} steps (dense mass matrix from the Laplace covariance)")
+        states, step_size, imm, warm_leapfrog = _warmup(
+            problem, coords, jax.random.split(k_warm, n_chains), start_w, jnp.eye(dim),
+            float(dim) ** -0.25, int(n_warmup), float(target_accept))
+        step_size, imm = np.asarray(step_size), np.asarray(imm)
+        n_grad_warm = int(np.sum(warm_leapfrog))
+        blocks = {k: np.zeros((0, n_chains) + s) for k, s in
+                  (("position", (dim,)), ("logdensity", ()), ("diverging", ()), ("depth", ()),
+                   ("leapfrog", ()), ("accept", ()))}
+        n_blocks_done, elapsed_before = 0, 0.0
+        if backend_path is not None:  # an interruption in the first block keeps the warm-up
+            _save(backend_path, settings=settings, step_size=step_size, imm=imm, n_grad_warm=n_grad_warm,
+                  last=np.asarray(states.position), n_blocks=0, elapsed_s=time.perf_counter() - t0, **blocks)
+    else:
+        say(f"resuming {backend_path}: {stored['position'].shape[0]} draws per chain stored")
+        step_size, imm = stored["step_size"], stored["imm"]
+        n_grad_warm = int(stored["n_grad_warm"])
+        # a NUTS state is the position with its log-density and gradient: recomputed exactly
+        states = _init_states(problem, coords, jnp.asarray(stored["last"]))
+        blocks = {k: stored[k] for k in ("position", "logdensity", "diverging", "depth", "leapfrog", "accept")}
+        n_blocks_done, elapsed_before = int(stored["n_blocks"]), float(stored["elapsed_s"])
+
+    target = initial_draws
+    converged, reason = False, ""
+    rhat = bulk = tail = np.full(dim, np.nan)
+    while True:
+        while blocks["position"].shape[0] < target:
+            block_key = jax.random.fold_in(k_sample, n_blocks_done)
+            states, out = _sample_block(problem, coords, block_key, states, jnp.asarray(step_size), jnp.asarray(imm), BLOCK)
+            for name, arr in zip(("position", "logdensity", "diverging", "depth", "leapfrog", "accept"), out):
+                blocks[name] = np.concatenate([blocks[name], np.asarray(arr, dtype=float)])
+            n_blocks_done += 1
+            if backend_path is not None:
+                _save(backend_path, settings=settings, step_size=step_size, imm=imm, n_grad_warm=n_grad_warm,
+                      last=np.asarray(states.position), n_blocks=n_blocks_done,
+                      elapsed_s=elapsed_before + time.perf_counter() - t0, **blocks)
+        n_draws = blocks["position"].shape[0]
+        rhat, bulk, tail = chain_diagnostics(blocks["position"])
+        n_div = int(np.sum(blocks["diverging"]))
+        converged, reason = _check(rhat, bulk, tail, n_div, n_draws, rhat_max, min_ess, names)
+        say(f"{n_draws} draws per chain: R̂ max {np.nanmax(rhat):.3f}, bulk ESS min {np.nanmin(bulk):.0f}, "
+            f"tail ESS min {np.nanmin(tail):.0f}, {n_div} divergent, "
+            f"{np.mean(blocks['leapfrog']):.1f} leapfrog steps per draw")
+        if converged or n_div or n_draws >= max_draws:
+            break  # more draws do not remove divergences
+        target = min(2 * n_draws, max_draws)
+    if not converged:
+        reason = f"not converged after {n_draws} draws per chain (max_draws = {max_draws}): {reason}"
+        warnings.warn(f"nuts: {reason}", ConvergenceWarning, stacklevel=2)
+
+    chain = blocks["position"]
+    total = chain.shape[0] * chain.shape[1]
+    tau = np.where(bulk > 0, total / np.where(bulk > 0, bulk, 1.0), np.inf)
+    accept = blocks["accept"]
+    bj = getattr(blackjax, "__version__", "?")
+    return NutsResult(
+        chain=chain, log_prob=blocks["logdensity"], tau=tau, n_steps=int(n_warmup + chain.shape[0]),
+        burn_in=int(n_warmup), thin=1, acceptance_fraction=accept.mean(axis=0), converged=bool(converged),
+        reason=reason, names=names, acceptance_rate=accept, seed=seed,
+        moves=(f"NUTS (BlackJAX {bj}), {n_chains} chains, window adaptation of the step size and a dense "
+               f"mass matrix seeded with the Laplace covariance, target acceptance {target_accept:g}"),
+        diverging=blocks["diverging"].astype(bool), tree_depth=blocks["depth"].astype(int),
+        n_leapfrog=blocks["leapfrog"].astype(int), step_size=np.asarray(step_size), inverse_mass_matrix=np.asarray(imm),
+        n_warmup=int(n_warmup), n_grad_evals=int(n_grad_warm + np.sum(blocks["leapfrog"])),
+        target_accept=float(target_accept), rhat=rhat, ess_bulk=bulk, ess_tail=tail,
+        elapsed_s=elapsed_before + time.perf_counter() - t0,
+    )

@@ -1,0 +1,213 @@
+"""NUTS (BlackJAX) beside emcee: the sampler on toys with known answers (Gaussian: the target;
+Neal's funnel: divergences flagged, never a converged answer), its coordinates for the noise
+parameters, exact resume, the ArviZ tree and fit.json of a NUTS fit, and ``--sampler auto``'s
+choice. Recovery on SYNTHETIC bench campaigns and agreement with emcee are slow tests."""
+
+import json
+import warnings
+from pathlib import Path
+from types import SimpleNamespace
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import torsionfit  # noqa: F401  (enables float64 in JAX)
+from torsionfit.report import FitOptions
+from torsionfit.report._pipeline import auto_switch_rule, sample_posterior
+from torsionfit.sample import ConvergenceWarning, Coordinates, NutsResult, run_nuts, run_sampler
+
+from test_sample import _toy  # the Gaussian toy with a known posterior
+
+BENCHES = Path(__file__).parent / "benches"
+FAST = dict(n_warmup=300, initial_draws=300, max_draws=600, progress=False)
+
+
+class Funnel(eqx.Module):
+    """Neal's funnel: v ~ N(0, 3²), x_i | v ~ N(0, e^v); its neck defeats any one step size."""
+
+    n: int = eqx.field(static=True, default=4)
+
+    @property
+    def dim(self) -> int:
+        return self.n + 1
+
+    def log_density(self, u):
+        v, x = u[0], u[1:]
+        return -0.5 * (v / 3.0) ** 2 - 0.5 * jnp.sum(x**2) * jnp.exp(-v) - 0.5 * self.n * v
+
+
+def test_nuts_samples_a_gaussian_and_reports_its_statistics():
+    problem, start, mean, cov = _toy()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)
+        res = run_nuts(problem, start, seed=0, **FAST)
+    assert isinstance(res, NutsResult) and res.sampler == "nuts"
+    assert res.converged and res.reason == "" and res.n_divergent == 0
+    assert res.chain.shape == (300, 4, 3) and res.log_prob.shape == (300, 4)
+    for a in (res.diverging, res.tree_depth, res.n_leapfrog, res.acceptance_rate):
+        assert a.shape == (300, 4)
+    assert res.n_grad_evals >= res.n_leapfrog.sum() > 0
+    assert np.all(res.rhat <= 1.01) and np.all(res.ess_bulk >= 400) and np.all(res.ess_tail >= 400)
+    assert 0.6 < res.acceptance_rate.mean() < 0.98
+    draws, sd = res.flat(), np.sqrt(np.diag(cov))
+    assert np.all(np.abs(draws.mean(0) - mean) < 0.15 * sd)
+    np.testing.assert_allclose(draws.std(0), sd, rtol=0.1)
+    np.testing.assert_allclose(res.log_prob, jax.vmap(jax.vmap(problem.log_density))(jnp.asarray(res.chain)), rtol=1e-10)
+    again = run_nuts(problem, start, seed=0, **FAST)
+    other = run_nuts(problem, start, seed=1, **FAST)
+    assert np.array_equal(res.chain, again.chain) and not np.array_equal(res.chain, other.chain)
+
+
+def test_nuts_flags_the_divergences_of_a_funnel():
+    """Started from a Gaussian guess of the funnel: the neck gives divergent transitions, so
+    the run is not converged and says why — whatever R̂ and ESS say."""
+    problem = Funnel()
+    start = SimpleNamespace(u=np.zeros(5), cov=np.diag([9.0] + [1.0] * 4), names=None)
+    with pytest.warns(ConvergenceWarning, match="divergent"):
+        res = run_nuts(problem, start, seed=0, **FAST)
+    assert res.n_divergent > 0 and not res.converged
+    assert "divergent transitions" in res.reason
+    assert res.diverging.dtype == bool and res.diverging.sum() == res.n_divergent
+
+
+def test_budget_reached_gives_unconverged_with_warning():
+    problem, start, *_ = _toy()
+    with pytest.warns(ConvergenceWarning, match="not converged after 100 draws"):
+        res = run_nuts(problem, start, seed=0, n_warmup=100, initial_draws=100, max_draws=100, min_ess=10_000,
+                       progress=False)
+    assert not res.converged and ("ESS" in res.reason or "R̂" in res.reason) and res.chain.shape[0] == 100
+
+
+def test_resume_gives_the_same_draws(tmp_path, monkeypatch):
+    """A run interrupted after its first block, resumed from its file, ends with the draws of
+    an uninterrupted run."""
+    import torsionfit.sample._nuts as nuts_module
+
+    problem, start, *_ = _toy()
+    kw = dict(seed=3, n_warmup=100, initial_draws=200, max_draws=200, progress=False, min_ess=10)
+    whole = run_nuts(problem, start, **kw)
+    path = tmp_path / "chain-nuts.npz"
+    real, calls = nuts_module._sample_block, []
+
+    def dies(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(nuts_module, "_sample_block", dies)
+    with pytest.raises(KeyboardInterrupt):
+        run_nuts(problem, start, backend_path=path, **kw)
+    monkeypatch.setattr(nuts_module, "_sample_block", real)
+    resumed = run_nuts(problem, start, backend_path=path, resume=True, **kw)
+    np.testing.assert_array_equal(resumed.chain, whole.chain)
+    assert resumed.n_grad_evals == whole.n_grad_evals
+    with pytest.raises(ValueError, match="other settings"):
+        run_nuts(problem, start, backend_path=path, resume=True, **{**kw, "seed": 4})
+
+
+def test_noise_coordinates_round_trip_with_their_log_jacobian():
+    problem = SimpleNamespace(floors=np.array([1e-6, 3e-6]), n_nonlinear=2, n_runs=2, n_ar1=2,
+                              y=[np.zeros(200), np.zeros(800)], ar1=(True, True))
+    coords = Coordinates.of(problem)
+    w = jnp.array([0.3, -1.0, -30.0, 4.0, -20.0, 3.0])
+    u, logjac = coords.to_u(w)
+    np.testing.assert_allclose(coords.from_u(u), w, atol=1e-12)
+    np.testing.assert_allclose(u[:2], w[:2])  # physics untouched
+    jac = jax.jacfwd(lambda v: coords.to_u(v)[0])(w)
+    assert np.allclose(jac - np.diag(np.diag(jac)), 0.0)  # element-wise
+    np.testing.assert_allclose(logjac, np.sum(np.log(np.abs(np.diag(jac)))), rtol=1e-12)
+    # s = c · softplus(w), c = floor · (2/N)^¼: log-like far below c, linear in s above it
+    c = np.array([1e-6, 3e-6]) * (2 / np.array([200, 800])) ** 0.25
+    np.testing.assert_allclose(np.exp(u[2:4]), c * np.log1p(np.exp(np.array([-30.0, 4.0]))), rtol=1e-10)
+    # ρ = tanh(softplus(w) / √N)
+    rho = np.tanh(np.log1p(np.exp(np.array([-20.0, 3.0]))) / np.sqrt([200, 800]))
+    np.testing.assert_allclose(jax.nn.sigmoid(u[4:]), rho, rtol=1e-10)
+    # a problem without noise parameters samples in u itself
+    toy, *_ = _toy()
+    ident = Coordinates.of(toy)
+    x = jnp.array([1.0, -2.0, 3.0])
+    assert np.array_equal(ident.to_u(x)[0], x) and float(ident.to_u(x)[1]) == 0.0
+
+
+def test_auto_rule_names_the_budget():
+    rule = auto_switch_rule(20_000)
+    assert rule(500, np.array([3.0, 10.0])) is None
+    why = rule(500, np.array([3.0, 785.0]))
+    assert "τ_max = 785" in why and "39250" in why and "20000" in why
+
+
+def test_auto_keeps_emcee_where_it_converges_and_switches_where_it_cannot():
+    problem, start, *_ = _toy()
+    res, used, why = sample_posterior(problem, start, FitOptions(sampler="auto", progress=False), seed=0)
+    assert used == "emcee" and res.converged and why.startswith("auto: emcee converged")
+    # a budget of 300 steps: the emcee check finds 50 τ_max above it (or ends unconverged)
+    opts = FitOptions(sampler="auto", progress=False, max_steps=300, n_warmup=300, max_draws=600)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)  # the switch itself warns of nothing
+        res, used, why = sample_posterior(problem, start, opts, seed=0)
+    assert used == "nuts" and isinstance(res, NutsResult) and res.converged
+    assert why.startswith("auto: NUTS, because") and "300" in why
+
+
+def test_emcee_stop_when_ends_the_run_without_a_warning():
+    problem, start, *_ = _toy()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)
+        res = run_sampler(problem, start, seed=0, check_every=100, progress=False,
+                          stop_when=lambda n, tau: "enough" if n >= 200 else None)
+    assert res.stopped_early and not res.converged and res.reason == "enough" and res.n_steps == 200
+
+
+# --- the tree and fit.json of a NUTS fit -------------------------------------------------------
+@pytest.fixture(scope="module")
+def small_nuts_fit(tmp_path_factory):
+    """A SYNTHETIC small campaign fitted with NUTS (short settings) through fit_campaign."""
+    from torsionfit.bench import load_bench, simulate
+    from torsionfit.report import fit_campaign, write_fit
+
+    path = tmp_path_factory.mktemp("bench") / "bench.toml"
+    path.write_text((BENCHES / "rv_small_base.toml").read_text().replace("sample_rate_Hz = 5.0", "sample_rate_Hz = 0.5"))
+    sim = simulate(load_bench(path), seed=0)
+    opts = FitOptions(sampler="nuts", n_starts=1, n_warmup=200, max_draws=500, progress=False, metric_draws=200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        fit = fit_campaign(sim.campaign, opts, seed=0)
+    out = tmp_path_factory.mktemp("fit")
+    doc = write_fit(fit, out)
+    return SimpleNamespace(fit=fit, doc=doc, out=out)
+
+
+def test_nuts_tree_has_the_emcee_layout_and_nuts_statistics(small_nuts_fit):
+    from torsionfit.sample import load_tree
+
+    fit = small_nuts_fit.fit
+    res = fit.sample_result
+    tree = load_tree(small_nuts_fit.out / "posterior.nc")
+    for g in ("posterior", "posterior_predictive", "log_likelihood", "observed_data", "sample_stats"):
+        assert g in tree.children
+    post, stats = tree["posterior"], tree["sample_stats"]
+    assert (post.sizes["chain"], post.sizes["draw"]) == (4, res.n_draws)
+    np.testing.assert_allclose(post["stiffness"].values, np.exp(res.chain[..., 0].T), rtol=1e-12)
+    assert post.attrs["inference_library"] == "blackjax" and stats.attrs["sampler"] == "nuts"
+    assert stats["diverging"].dtype == bool and stats["diverging"].dims == ("chain", "draw")
+    np.testing.assert_array_equal(stats["diverging"].values, res.diverging.T)
+    np.testing.assert_array_equal(stats["tree_depth"].values, res.tree_depth.T)
+    np.testing.assert_array_equal(stats["n_steps"].values, res.n_leapfrog.T)
+    assert np.all((stats["acceptance_rate"].values >= 0) & (stats["acceptance_rate"].values <= 1))
+    assert stats.attrs["n_divergent"] == res.n_divergent and stats.attrs["converged"] == int(res.converged)
+    assert len(stats.attrs["step_size"]) == 4
+
+
+def test_nuts_fit_json_diagnostics(small_nuts_fit):
+    doc = json.loads((small_nuts_fit.out / "fit.json").read_text())
+    d = doc["diagnostics"]
+    res = small_nuts_fit.fit.sample_result
+    assert d["sampler"] == "nuts" and d["sampler_choice_reason"] == "asked for (--sampler nuts)"
+    assert d["converged"] == res.converged and d["n_divergent"] == res.n_divergent
+    assert d["n_chains"] == 4 and d["n_draws"] == res.n_draws and d["n_grad_evals"] == res.n_grad_evals
+    assert d["converged"] or d["reason"].startswith("not converged")
+    assert set(doc["parameters"]) >= {"stiffness", "friction_torque", "dahl_torque", "gap", "gap_torque"}
