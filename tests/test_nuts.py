@@ -211,3 +211,62 @@ def test_nuts_fit_json_diagnostics(small_nuts_fit):
     assert d["n_chains"] == 4 and d["n_draws"] == res.n_draws and d["n_grad_evals"] == res.n_grad_evals
     assert d["converged"] or d["reason"].startswith("not converged")
     assert set(doc["parameters"]) >= {"stiffness", "friction_torque", "dahl_torque", "gap", "gap_torque"}
+
+
+# --- slow: the posterior of SYNTHETIC bench campaigns -------------------------------------------
+PHYSICS = ("stiffness", "friction_torque", "dahl_torque", "gap", "gap_torque")
+
+
+def _small_campaign(seed):
+    """The small SYNTHETIC base-model campaign at 1 Hz, its problem and MAP."""
+    import tempfile
+
+    from torsionfit.bench import load_bench, simulate
+    from torsionfit.fit import fit_map
+    from torsionfit.report import prepare_fit
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "bench.toml"
+        path.write_text((BENCHES / "rv_small_base.toml").read_text().replace("sample_rate_Hz = 5.0", "sample_rate_Hz = 1.0"))
+        sim = simulate(load_bench(path), seed=seed)
+    campaign, _, problem = prepare_fit(sim.campaign, FitOptions())
+    runs = [r.name for r in campaign.runs]
+    return sim, problem, fit_map(problem, runs, n_starts=2, seed=seed)
+
+
+@pytest.mark.slow
+def test_nuts_recovers_the_truth_on_bench_campaigns():
+    """Two SYNTHETIC campaigns (seeds 0, 1): of the 10 (campaign, parameter) pairs at least 8
+    have the truth inside the 95 % HDI (9.6 expected; ``benchmarks/bench_samplers.py``-style
+    runs over more seeds belong in a script), and every run converged by the NUTS rule."""
+    from torsionfit.report._pipeline import _hdi
+
+    inside = 0
+    for seed in (0, 1):
+        sim, problem, m = _small_campaign(seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", ConvergenceWarning)
+            res = run_nuts(problem, m, seed=seed, progress=False)
+        assert res.converged and res.n_divergent == 0
+        values = jax.vmap(lambda u: problem.physics_values(u[:problem.n_nonlinear]))(jnp.asarray(res.flat()))
+        for name in PHYSICS:
+            lo, hi = _hdi(np.ravel(np.asarray(values[name])))
+            inside += bool(lo <= float(np.ravel(sim.truth[name])[0]) <= hi)
+    assert inside >= 8
+
+
+@pytest.mark.slow
+def test_nuts_agrees_with_emcee_where_both_converge():
+    """Means of the physical parameters (in u) within 0.1 posterior sd, sds within 15 %; NUTS
+    run to a bulk ESS of 2000 so that the Monte-Carlo error of the difference is ~0.03 sd."""
+    _, problem, m = _small_campaign(0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ConvergenceWarning)
+        e = run_sampler(problem, m, seed=0, progress=False)
+        n = run_nuts(problem, m, seed=0, min_ess=2000, progress=False)
+    assert e.converged and n.converged
+    k = problem.n_model
+    de, dn = e.flat()[:, :k], n.flat()[:, :k]
+    sd = de.std(0)
+    assert np.all(np.abs(dn.mean(0) - de.mean(0)) < 0.1 * sd)
+    np.testing.assert_allclose(dn.std(0), sd, rtol=0.15)
