@@ -347,8 +347,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_output(p)
     p.add_argument("--quick", action="store_true", help="quick settings: Laplace approximation, slowest loop only, decimated, small grid (tests)")
     _add_seed(p)
-    _add_sampler(p, default=None, choices=("laplace", "emcee"),
-                 help="posterior of the fits: the MAP's Laplace approximation (default) or emcee (hours on 2 cores)")
+    _add_sampler(p, default=None, choices=("laplace", "emcee", "nuts", "auto"),
+                 help="posterior of the fits: the MAP's Laplace approximation (default), emcee (hours on 2 cores), "
+                      "nuts or auto (as for fit); the page's fit table names the sampler each fit used")
     p.add_argument("--data", type=Path, default=None, help="folder holding paper-small/ and paper-large/ (default: the checkout's data/)")
     _add_quiet(p)
     p.set_defaults(func=_cmd_paper)
