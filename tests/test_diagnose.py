@@ -31,7 +31,7 @@ import numpy as np
 import pytest
 
 from torsionfit.bench import EFFECTS, load_bench, simulate
-from torsionfit.diagnose import DiagnoseOptions, diagnose
+from torsionfit.diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
 from torsionfit.io import load_campaign, write_campaign
 
 pytestmark = pytest.mark.slow
@@ -118,16 +118,18 @@ def _undeclared_campaign(tmp_path: Path, effects: dict, truth: dict, seed: int, 
 
 
 def _summary(d) -> str:
-    steps = ", ".join(f"{s.effect} (log10 p {s.evidence.log10_p:.1f}, ΔELPD {s.delta_elpd:.1f} ± {s.delta_elpd_se:.1f}, "
-                      f"RMSE {s.before.rmse_arcsec:.2f}″ → {s.after.rmse_arcsec:.2f}″)" for s in d.steps) or "none"
-    rejected = ", ".join(f"{s.effect} (log10 p {s.evidence.log10_p:.1f}, ΔELPD {s.delta_elpd:.1f} ± {s.delta_elpd_se:.1f})"
-                         for s in d.rejected) or "none"
+    steps = ", ".join(f"{s.effect} (log10 p {s.evidence.log10_p:.1f}, ΔELPD {s.delta_elpd:.1f} ± {s.delta_elpd_se:.1f} "
+                      f"{s.comparison.criterion}, RMSE {s.before.rmse_arcsec:.2f}″ → {s.after.rmse_arcsec:.2f}″)"
+                      for s in d.steps) or "none"
+    rejected = ", ".join(f"{s.effect} (log10 p {s.evidence.log10_p:.1f}, ΔELPD {s.delta_elpd:.1f} ± {s.delta_elpd_se:.1f} "
+                         f"{s.comparison.criterion})" for s in d.rejected) or "none"
     sigs = " | ".join(", ".join(f"{e.effect} {e.log10_p:.1f}" for e in it) for it in d.signatures)
     per_run = ", ".join(f"{k} {v:.2f}″" for k, v in d.final.rmse_per_run.items())
     return (f"base RMSE {d.base.rmse_arcsec:.2f}″ → final {d.final.rmse_arcsec:.2f}″ ({per_run}); "
             f"final effects {d.final.effects}; "
             f"added: {steps}; rejected: {rejected}; signatures (log10 p) per iteration: {sigs}; "
-            f"unexplained: {d.unexplained} {d.unexplained_description!r}")
+            f"unexplained: {d.unexplained} {d.unexplained_description!r}; noise estimate {d.noise_arcsec:.2f}″; "
+            f"notes: {d.notes}")
 
 
 def _diagnose(campaign, seed):
@@ -206,8 +208,17 @@ def _check_found(d, effect: str, truth_effects: dict):
     assert not extra, f"added {sorted(extra)} besides {effect!r}: {_summary(d)}"
     assert d.final.rmse_arcsec <= 0.7 * d.base.rmse_arcsec, _summary(d)
     assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
+    assert not d.unexplained, _summary(d)  # at the noise after its extension: nothing is left to report
+    _check_finite(d)
     if effect == "kinematic_error":
         assert set(truth_effects["kinematic_error"]) <= set(d.final.effects["kinematic_error"]), _summary(d)
+
+
+def _check_finite(d):
+    """Every comparison the loop made is a finite number, and says which criterion decided."""
+    for s in d.steps + d.rejected:
+        assert np.isfinite(s.delta_elpd) and np.isfinite(s.delta_elpd_se), _summary(d)
+        assert s.comparison.criterion in ("psis-loo", "linearised-loo") and s.comparison.reason, _summary(d)
 
 
 @pytest.mark.parametrize("effect", [
@@ -267,3 +278,71 @@ def test_encoder_ripple_is_reported_unexplained(tmp_path):
     assert found[0].details["period"] == pytest.approx(period, rel=0.05), _summary(d)
     numbers = [float(x) for x in re.findall(r"period ([0-9.eE+-]+) arcsec", found[0].description)]
     assert numbers and numbers[0] == pytest.approx(period, rel=0.05)
+    _check_finite(d)
+    # a refit that contains the current model cannot lose more than its few extra parameters'
+    # worth (a Laplace-draw LOO once scored such a refit −34 000)
+    assert all(s.delta_elpd > -50.0 for s in d.rejected), _summary(d)
+    # diagnose.json: the finding, the criterion of every comparison, the final model's metrics
+    doc = write_diagnosis(d, campaign, tmp_path / "out")
+    saved = json.loads((tmp_path / "out" / "diagnose.json").read_text())
+    assert saved["unexplained"] and saved["noise_estimate"] > 0
+    assert all(s["criterion"] in ("psis-loo", "linearised-loo") for s in saved["steps"] + saved["rejected"])
+    k = saved["final_metrics"]["metrics"]["stiffness_elastic"]
+    assert k["hdi95"][0] < k["mean"] < k["hdi95"][1] and k["mean"] == pytest.approx(K, rel=0.05)
+    assert "stiffness_elastic" in summary_text(doc)
+
+
+# --- noise below one encoder step: the comparison must stay finite ----------------------------
+TE_BENCH = BENCHES / "te_kinematic.toml"  # six TE runs, 3600 samples per revolution
+#: what a right model leaves on TE_BENCH: 0.4″ white noise on the 1″ output encoder's reading
+TE_NOISE_RMSE = float(np.sqrt(0.4**2 + 1.0 / 12.0))
+
+
+def test_kinematic_te_campaign_below_the_encoder_step_closes_with_kinematic_error(tmp_path):
+    """Orders 1, 2 and 39 in TE runs at three loads, both directions: adding the harmonics takes
+    the residual to the noise (below one encoder step), and the comparison that says so is a
+    finite number — nothing else is added and nothing is left."""
+    rng = np.random.default_rng(_seed("parameters", "te-kinematic"))
+    amp, phase = rng.uniform([15.0, 4.0, 3.0], [30.0, 10.0, 8.0]), rng.uniform(0.0, 2 * np.pi, 3)
+    truth = {"kin_cos_arcsec": list(amp * np.cos(phase)), "kin_sin_arcsec": list(amp * np.sin(phase))}
+    campaign, _ = _undeclared_campaign(tmp_path, {"kinematic_error": [1, 2, 39]}, truth, _seed("noise", "te-kinematic"),
+                                       base=TE_BENCH)
+    print(truth)
+    d = _diagnose(campaign, _seed("diagnose", "te-kinematic") % 1000)
+    assert [s.effect for s in d.steps] == ["kinematic_error"], _summary(d)
+    assert {1, 2, 39} <= set(d.final.effects["kinematic_error"]), _summary(d)
+    assert d.final.rmse_arcsec <= 1.1 * TE_NOISE_RMSE < 0.1 * d.base.rmse_arcsec, _summary(d)
+    step = d.steps[0]
+    assert step.delta_elpd > 2 * step.delta_elpd_se > 0, _summary(d)
+    _check_finite(d)
+    assert not d.unexplained, _summary(d)
+
+
+# --- a warm-up: drift that saturates ----------------------------------------------------------
+def test_saturating_drift_closes_to_the_noise(tmp_path):
+    """Each run of base.toml starts cold: a(1 − e^(−t/T)) added to its readings, T 10–40 % of the
+    run, |a| 4–8″ (SYNTHETIC, added to the simulated campaign before it is written). A linear
+    drift leaves the bend; the warm-up shape takes the residual to the noise."""
+    from dataclasses import replace
+
+    from torsionfit.io import HysteresisRun
+    from torsionfit.units import ANGLE_UNITS
+
+    (tmp_path / "clean").mkdir()
+    clean, _ = _undeclared_campaign(tmp_path / "clean", {}, {}, _seed("noise", "warm-up"))
+    rng = np.random.default_rng(_seed("parameters", "warm-up"))
+    runs = []
+    for run in clean.runs:
+        t = np.asarray(run.time_s) - run.time_s[0]
+        a = rng.choice([-1.0, 1.0]) * rng.uniform(4.0, 8.0) * ANGLE_UNITS["arcsec"]
+        warm = a * (1.0 - np.exp(-t / (rng.uniform(0.1, 0.4) * t[-1])))
+        runs.append(replace(run, angle_rad=run.angle_rad + warm) if isinstance(run, HysteresisRun)
+                    else replace(run, te_rad=run.te_rad + warm))
+    campaign = load_campaign(write_campaign(replace(clean, runs=tuple(runs)), tmp_path / "warm",
+                                            label="SYNTHETIC diagnose test campaign (base.toml, readings changed by the test)"))
+    d = _diagnose(campaign, _seed("diagnose", "warm-up") % 1000)
+    assert {s.effect for s in d.steps} == {"thermal_drift"}, _summary(d)
+    assert d.final.effects["thermal_drift"] == "warm_up", _summary(d)
+    assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
+    assert not d.unexplained, _summary(d)
+    _check_finite(d)

@@ -30,3 +30,95 @@ def test_warm_up_drift_is_the_linear_drift_plus_saturating_exponentials():
     assert [p.name for p in linear.parameters() if p.name.startswith("drift")] == ["drift"]
     with pytest.raises(InputError, match="thermal_drift"):
         model_with_effects(["transmission_error"], {"thermal_drift": "quadratic"}, 380.0)
+
+
+def test_linearised_loo_is_exact_leave_one_out_for_a_linear_gaussian_model():
+    """y = A a + X b + noise (σ = 1), a with a normal prior (precision through pseudo-rows),
+    b flat: the closed form equals refitting without each sample."""
+    from torsionfit.diagnose._selection import leverage
+
+    rng = np.random.default_rng(4)
+    n = 40
+    a_cols, x = rng.normal(size=(n, 3)), rng.normal(size=(n, 2))
+    prior_sd = np.array([0.5, 2.0, 1.0])
+    y = a_cols @ np.array([0.3, -1.0, 0.5]) + x @ np.array([2.0, 1.0]) + rng.normal(size=n)
+    # the profiled residual and its Jacobian in a: the flat b projected out
+    q, _ = np.linalg.qr(x)
+    proj = np.eye(n) - q @ q.T
+    full = np.concatenate([a_cols, x], axis=1)
+    prec = np.diag(np.concatenate([1 / prior_sd**2, np.zeros(2)]))
+    coef = np.linalg.solve(full.T @ full + prec, full.T @ y)
+    w = y - full @ coef
+    jac = np.concatenate([-proj @ a_cols, np.diag(1 / prior_sd)], axis=0)
+    h = leverage(jac, n, x)
+    closed = -0.5 * np.log(2 * np.pi) + 0.5 * np.log1p(-h) - 0.5 * w**2 / (1 - h)
+    brute = []
+    for i in range(n):
+        keep = np.arange(n) != i
+        c = np.linalg.solve(full[keep].T @ full[keep] + prec, full[keep].T @ y[keep])
+        var = 1.0 + full[i] @ np.linalg.solve(full[keep].T @ full[keep] + prec, full[i])
+        brute.append(-0.5 * np.log(2 * np.pi * var) - 0.5 * (y[i] - full[i] @ c) ** 2 / var)
+    np.testing.assert_allclose(closed, brute, rtol=1e-9)
+
+
+def _score(linearised, psis=None, k=None, note=""):
+    from torsionfit.diagnose._selection import Score
+
+    return Score(linearised=np.asarray(linearised, float), psis=None if psis is None else np.asarray(psis, float),
+                 pareto_k=None if k is None else np.asarray(k, float), good_k=0.6, psis_note=note,
+                 lengths=(len(linearised) // 2, len(linearised) - len(linearised) // 2))
+
+
+def test_the_rule_uses_psis_loo_only_when_every_pareto_k_is_good():
+    from torsionfit.diagnose._selection import LINEARISED, PSIS, compare
+
+    n = 100
+    before = _score(np.full(n, -1.0), np.full(n, -1.1), np.full(n, 0.2))
+    after = _score(np.full(n, -0.5), np.full(n, -0.6), np.full(n, 0.3))
+    c = compare(before, after)
+    assert c.criterion == PSIS and c.delta == pytest.approx(50.0)
+    bad = _score(np.full(n, -0.5), np.full(n, -0.6), np.r_[np.full(n - 1, 0.3), 0.9])
+    c = compare(before, bad)
+    assert c.criterion == LINEARISED and c.delta == pytest.approx(50.0)
+    assert "Pareto k > 0.60 at 1 of 100 samples" in c.reason
+    # PSIS-LOO missing (Laplace draws far from the posterior, or not finite): the fallback, finite
+    missing = _score(np.full(n, -0.5), note="the Laplace draws do not represent the posterior")
+    assert "not computed" in compare(_score(np.full(n, -0.5)), before).reason
+    c = compare(missing, before)
+    assert c.criterion == LINEARISED and np.isfinite(c.delta) and np.isfinite(c.se)
+    assert "do not represent the posterior" in c.reason
+
+
+def test_small_leftovers_are_notes_and_large_ones_findings():
+    from torsionfit.diagnose import DiagnoseOptions, Evidence
+    from torsionfit.diagnose._loop import judge_leftovers
+
+    options = DiagnoseOptions()  # findings: > 5 % of the residual variance and RMSE > 1.10 × noise
+    small = Evidence("unexplained", 50.0, 2, -10.0, 0.007, "periodic in time with period 3.5 s")
+    large = Evidence("unexplained", 900.0, 2, -190.0, 0.40, "periodic in the measured angle with period 61 arcsec")
+    findings, notes = judge_leftovers([small, large], 1.8, 1.04, options)
+    assert findings == [large]
+    assert len(notes) == 1 and notes[0].startswith("periodic in time") and "0.7 %" in notes[0]
+    # a large share of a residual already at the noise (RMSE within 10 % of it) is a note too
+    findings, notes = judge_leftovers([large], 0.50, 0.49, options)
+    assert findings == [] and "against the noise estimate 0.49″" in notes[0]
+    assert judge_leftovers([], 3.0, 1.0, options) == ([], [])
+
+
+def test_the_standard_error_counts_a_structured_difference_once():
+    """A gain concentrated in one stretch of a run (a misfit absorbed there) is one piece of
+    evidence, not hundreds: the block SE is far larger than the per-sample one; for independent
+    per-sample differences the two agree."""
+    from torsionfit.diagnose._selection import compare
+
+    rng = np.random.default_rng(2)
+    n = 4000
+    noise = rng.normal(0.0, 0.05, n)
+    bump = np.zeros(n)
+    bump[1000:1200] = 0.1
+    before = _score(np.zeros(n))
+    c = compare(before, _score(noise + bump))
+    per_sample = np.sqrt(n * np.var(noise + bump))
+    assert c.se > 2.5 * per_sample
+    c = compare(before, _score(noise))
+    assert c.se == pytest.approx(np.sqrt(n * np.var(noise)), rel=0.35)

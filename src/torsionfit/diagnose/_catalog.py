@@ -11,6 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..model import DahlFriction, MaxwellSlipFriction
+from ..model._drift import WARM_UP_FRACTIONS
 from ..model._effects import DEFAULT_FRICTION_ELEMENTS
 from ._context import FitContext
 from ._signature import Evidence, regression_evidence
@@ -210,22 +211,39 @@ class Asymmetry(Effect):
 
 class ThermalDrift(Effect):
     name = "thermal_drift"
-    signature_text = "slow trend of the residual over time within runs, not explained by torque"
-    extension_text = "a linear drift term per run"
+    growable = True  # linear first; a warm-up shape when the residual still bends over time
+    signature_text = ("slow trend of the residual over time within runs, not explained by torque; once a linear "
+                      "drift is in, the residual still bending over time (saturating exponentials)")
+    extension_text = "a linear drift term per run, then a warm-up shape (saturating exponentials) per run"
+
+    def _shape(self, ctx):
+        drift = ctx.effects.get(self.name)
+        return None if not drift else "linear" if drift in (True, "linear") else drift
+
+    def applicable(self, ctx):
+        return self._shape(ctx) != "warm_up"
 
     def signature(self, ctx, alpha):
-        # one trend per run, tested jointly: column i is run i's normalised time, zero elsewhere
+        # one trend per run, tested jointly: run i's columns are non-zero on run i only
         n = len(ctx.runs)
+        shape = self._shape(ctx)
+        k = 1 if shape is None else len(WARM_UP_FRACTIONS)
         cols = []
         for i, r in enumerate(ctx.runs):
             span = max(float(r.time_s[-1] - r.time_s[0]), 1e-12)
-            c = np.zeros((len(r.residual), n))
-            c[:, i] = (r.time_s - r.time_s[0]) / span - 0.5
+            t = (r.time_s - r.time_s[0]) / span
+            c = np.zeros((len(r.residual), n * k))
+            if shape is None:
+                c[:, i] = t - 0.5
+            else:  # the fitted linear drift is in the run's design: only the bend is tested
+                c[:, i * k:(i + 1) * k] = 1.0 - np.exp(-t[:, None] / np.asarray(WARM_UP_FRACTIONS)[None, :])
             cols.append(c)
-        return regression_evidence(self.name, ctx.runs, cols, "residual trends over time within runs (one slope per run)")
+        text = ("residual trends over time within runs (one slope per run)" if shape is None else
+                "residual bends over time within runs beyond the linear drift (saturating exponentials: a warm-up)")
+        return regression_evidence(self.name, ctx.runs, cols, text, {"shape": "linear" if shape is None else "warm_up"})
 
     def extend(self, effects, evidence, ctx):
-        return {**effects, self.name: True}
+        return {**effects, self.name: True if self._shape(ctx) is None else "warm_up"}
 
 
 class TorqueOffset(Effect):

@@ -1,19 +1,17 @@
 """Closing the loop (DESIGN §3): fit, find the residual's strongest signature, add that
-effect, keep it only when it earns its keep by PSIS-LOO, repeat; then describe whatever
-structure is left that no catalog effect explains.
+effect, keep it only when it earns its keep, repeat; then describe whatever structure is left
+that no catalog effect explains.
 
-Model comparison: PSIS-LOO (``arviz_stats.loo``) on draws from each fit's posterior — the
-Laplace approximation at the MAP by default (fast, calibrated in the tests), or emcee. An
-effect is kept when ΔELPD > ``min_delta_elpd`` and ΔELPD > 2 × its standard error.
+Model comparison (``_selection``): ΔELPD of the extension from PSIS-LOO on importance-corrected
+Laplace draws when every Pareto k is good in both fits, else from the linearised LOO (leverage
+closed form at the MAP, always finite); the comparison records which criterion decided and
+why. An effect is kept when ΔELPD > ``min_delta_elpd`` and ΔELPD > 2 × its standard error.
 The pointwise terms are the AR(1) one-step conditional densities of each sample.
 """
 
 import time
 from dataclasses import dataclass, field
 
-import equinox as eqx
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ..fit import NoiseOptions, build_problem, fit_map
@@ -22,6 +20,7 @@ from ..model import model_with_effects
 from ..units import ANGLE_UNITS
 from ._catalog import CATALOG, Effect
 from ._context import FitContext, fit_context
+from ._selection import Comparison, Score, compare, score
 from ._signature import Evidence, regression_evidence
 
 ARCSEC = ANGLE_UNITS["arcsec"]
@@ -36,6 +35,9 @@ class DiagnoseOptions:
     max_effects: int = 7
     candidates_per_step: int = 3  # refits tried per step before giving up
     loo_draws: int = 200
+    # a leftover is a finding (``unexplained``) only when it is large against the noise floor:
+    finding_min_explained: float = 0.05  # it explains more than this share of the residual variance …
+    finding_min_excess: float = 0.10  # … and the final RMSE exceeds the noise estimate by more than this
     n_starts: int = 3
     noise: NoiseOptions = NoiseOptions()
     catalog: tuple = CATALOG
@@ -46,8 +48,7 @@ class Fitted:
     effects: dict
     map_result: object
     context: FitContext
-    pointwise_elpd: np.ndarray  # PSIS-LOO per sample, all runs
-    elpd: float
+    score: Score  # pointwise PSIS-LOO and linearised LOO (see _selection)
     rmse_arcsec: float
     max_abs_arcsec: float
     rmse_per_run: dict
@@ -60,9 +61,16 @@ class Step:
     evidence: Evidence
     before: Fitted
     after: Fitted
-    delta_elpd: float
-    delta_elpd_se: float
+    comparison: Comparison
     kept: bool
+
+    @property
+    def delta_elpd(self) -> float:
+        return self.comparison.delta
+
+    @property
+    def delta_elpd_se(self) -> float:
+        return self.comparison.se
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,30 +82,9 @@ class Diagnosis:
     signatures: list  # per iteration: list of Evidence (all effects), for the report
     unexplained: bool
     unexplained_description: str
-    leftovers: list  # Evidence of structure no catalog effect explains
-
-
-@eqx.filter_jit
-def _pointwise_draws(problem, u_batch):
-    def one(u):
-        return jnp.concatenate(problem.pointwise_log_likelihood(u))
-
-    return jax.lax.map(one, u_batch)
-
-
-def _loo(problem, map_result, draws: int, seed: int):
-    """PSIS-LOO pointwise ELPD from Laplace draws (chains × draws × observations)."""
-    from arviz_base import from_dict
-    from arviz_stats import loo
-
-    rng = np.random.default_rng(seed)
-    cov = 0.5 * (map_result.cov + map_result.cov.T)
-    u = rng.multivariate_normal(map_result.u, cov, size=draws, method="eigh")
-    ll = np.asarray(_pointwise_draws(problem, jnp.asarray(u)))
-    ll = np.where(np.isfinite(ll), ll, -1e300)
-    tree = from_dict({"posterior": {"u0": u[:, 0][None, :]}, "log_likelihood": {"y": ll[None, :, :]}})
-    res = loo(tree, var_name="y", pointwise=True)
-    return np.asarray(res.elpd_i).reshape(-1), float(res.elpd)
+    leftovers: list  # Evidence of structure no catalog effect explains, large against the noise
+    notes: list  # str: significant leftovers too small against the noise to be a finding
+    noise_arcsec: float  # the measurement noise of the final fit's residuals (RMS over all samples)
 
 
 def fit_with(campaign: Campaign, effects: dict, options: DiagnoseOptions, seed: int) -> Fitted:
@@ -107,17 +94,14 @@ def fit_with(campaign: Campaign, effects: dict, options: DiagnoseOptions, seed: 
     problem = build_problem(campaign, model, options.noise)
     result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed)
     ctx = fit_context(campaign, effects, result)
-    pointwise, elpd = _loo(problem, result, options.loo_draws, seed)
+    scored = score(problem, result, options.loo_draws, seed)
     resid = np.concatenate([r.residual for r in ctx.runs]) / ARCSEC
     per_run = {r.name: float(np.sqrt(np.mean((r.residual / ARCSEC) ** 2))) for r in ctx.runs}
-    return Fitted(effects=dict(effects), map_result=result, context=ctx, pointwise_elpd=pointwise, elpd=elpd,
+    return Fitted(effects=dict(effects), map_result=result, context=ctx, score=scored,
                   rmse_arcsec=float(np.sqrt(np.mean(resid**2))), max_abs_arcsec=float(np.max(np.abs(resid))),
                   rmse_per_run=per_run, seconds=time.perf_counter() - t0)
 
 
-def _compare(before: Fitted, after: Fitted) -> tuple[float, float]:
-    diff = after.pointwise_elpd - before.pointwise_elpd
-    return float(np.sum(diff)), float(np.sqrt(len(diff) * np.var(diff)))
 
 
 def _signatures(ctx: FitContext, options: DiagnoseOptions, added: set) -> list[tuple[Effect, Evidence]]:
@@ -150,25 +134,53 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
             trial_effects = effect.extend(effects, ev, current.context)
             say(f"trying {effect.name} (log10 p = {ev.log10_p:.1f})")
             trial = fit_with(campaign, trial_effects, options, seed)
-            d, se = _compare(current, trial)
-            step = Step(effect.name, ev, current, trial, d, se, kept=False)
-            if d > options.min_delta_elpd and d > options.se_factor * se:
-                accepted = Step(effect.name, ev, current, trial, d, se, kept=True)
+            c = compare(current.score, trial.score)
+            if c.delta > options.min_delta_elpd and c.delta > options.se_factor * c.se:
+                accepted = Step(effect.name, ev, current, trial, c, kept=True)
                 break
-            rejected.append(step)
-            say(f"  {effect.name} rejected: ΔELPD {d:.1f} ± {se:.1f}")
+            rejected.append(Step(effect.name, ev, current, trial, c, kept=False))
+            say(f"  {effect.name} rejected: ΔELPD {c.delta:.1f} ± {c.se:.1f} ({c.criterion})")
         if accepted is None:
             break
-        say(f"  {accepted.effect} added: ΔELPD {accepted.delta_elpd:.1f} ± {accepted.delta_elpd_se:.1f}, "
+        say(f"  {accepted.effect} added: ΔELPD {accepted.delta_elpd:.1f} ± {accepted.delta_elpd_se:.1f} "
+            f"({accepted.comparison.criterion}), "
             f"RMSE {accepted.before.rmse_arcsec:.3g}″ → {accepted.after.rmse_arcsec:.3g}″")
         steps.append(accepted)
         current = accepted.after
         effects = dict(current.effects)
         added.add(accepted.effect)
-    leftovers = _leftovers(current.context, options, added)
-    description = "; ".join(ev.description for ev in leftovers)
+    noise = noise_rmse_arcsec(current.context)
+    findings, notes = judge_leftovers(_leftovers(current.context, options, added), current.rmse_arcsec, noise, options)
+    description = "; ".join(ev.description for ev in findings)
     return Diagnosis(base=base, final=current, steps=steps, rejected=rejected, signatures=history,
-                     unexplained=bool(leftovers), unexplained_description=description, leftovers=leftovers)
+                     unexplained=bool(findings), unexplained_description=description, leftovers=findings,
+                     notes=notes, noise_arcsec=noise)
+
+
+def judge_leftovers(leftovers: list, rmse_arcsec: float, noise_arcsec: float, options: DiagnoseOptions):
+    """(findings, notes): a significant leftover is a finding only when it is large against the
+    noise floor — it explains more than ``finding_min_explained`` of the residual variance and
+    the final RMSE exceeds the noise estimate by more than ``finding_min_excess``; the others
+    become notes (text)."""
+    excess = rmse_arcsec / noise_arcsec - 1.0 if noise_arcsec > 0 else np.inf
+    findings, notes = [], []
+    for ev in leftovers:
+        if ev.explained > options.finding_min_explained and excess > options.finding_min_excess:
+            findings.append(ev)
+        else:
+            notes.append(f"{ev.description} — small against the noise: {100 * ev.explained:.1f} % of the residual "
+                         f"variance (a finding needs > {100 * options.finding_min_explained:g} %), final RMSE "
+                         f"{rmse_arcsec:.3g}″ against the noise estimate {noise_arcsec:.3g}″ (a finding needs "
+                         f"> {100 * options.finding_min_excess:g} % above)")
+    return findings, notes
+
+
+def noise_rmse_arcsec(ctx: FitContext) -> float:
+    """RMS of the measurement noise over all samples (arcsec): per run the AR(1) noise the
+    signatures whiten with — innovation sd from the residual's short-lag variogram, floored by the
+    encoder, plus the errors-in-variables part — as a marginal sd, σ_i/√(1 − ρ²)."""
+    var = np.concatenate([r.scale**2 / (1.0 - r.rho**2) for r in ctx.runs])
+    return float(np.sqrt(np.mean(var))) / ARCSEC
 
 
 def _periodic_search(ctx: FitContext, runs, variable, label: str, unit_scale: float, unit: str, alpha: float):

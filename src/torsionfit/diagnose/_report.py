@@ -11,6 +11,9 @@ from ._loop import Diagnosis
 ARCSEC = ANGLE_UNITS["arcsec"]
 
 
+_NOTHING_LEFT = "nothing left that is large against the noise"
+
+
 def _evidence(ev) -> dict:
     return {"effect": ev.effect, **ev.as_dict()}
 
@@ -18,7 +21,7 @@ def _evidence(ev) -> dict:
 def diagnose_json(d: Diagnosis, campaign) -> dict:
     def fitted(f):
         return {"effects": sorted(f.effects), "rmse": f.rmse_arcsec, "max_abs": f.max_abs_arcsec,
-                "rmse_per_run": f.rmse_per_run, "elpd": f.elpd}
+                "rmse_per_run": f.rmse_per_run, **f.score.as_dict()}
 
     return {
         "campaign": str(campaign.path) if campaign.path else None,
@@ -28,17 +31,19 @@ def diagnose_json(d: Diagnosis, campaign) -> dict:
             {"effect": s.effect, "evidence": _evidence(s.evidence),
              "rmse_before": s.before.rmse_arcsec, "rmse_after": s.after.rmse_arcsec,
              "max_abs_before": s.before.max_abs_arcsec, "max_abs_after": s.after.max_abs_arcsec,
-             "delta_elpd": s.delta_elpd, "delta_elpd_se": s.delta_elpd_se}
+             **s.comparison.as_dict()}
             for s in d.steps
         ],
         "added": list(dict.fromkeys(s.effect for s in d.steps)),  # a growable effect may take two steps
         "rejected": [
             {"effect": s.effect, "evidence": _evidence(s.evidence), "rmse_before": s.before.rmse_arcsec,
-             "rmse_after": s.after.rmse_arcsec, "delta_elpd": s.delta_elpd, "delta_elpd_se": s.delta_elpd_se}
+             "rmse_after": s.after.rmse_arcsec, **s.comparison.as_dict()}
             for s in d.rejected
         ],
         "unexplained": d.unexplained,
         "unexplained_description": d.unexplained_description,
+        "notes": list(d.notes),
+        "noise_estimate": d.noise_arcsec,
         "leftovers": [_evidence(e) for e in d.leftovers],
         "rmse_base": d.base.rmse_arcsec,
         "rmse_final": d.final.rmse_arcsec,
@@ -53,18 +58,43 @@ def summary_text(doc: dict) -> str:
     for s in doc["steps"]:
         lines.append(f"+ {s['effect']:24s} log10 p {s['evidence']['log10_p']:9.1f}   RMSE {s['rmse_before']:.3g}″ → "
                      f"{s['rmse_after']:.3g}″   max {s['max_abs_before']:.3g}″ → {s['max_abs_after']:.3g}″   "
-                     f"ΔELPD {s['delta_elpd']:.1f} ± {s['delta_elpd_se']:.1f}")
+                     f"ΔELPD {s['delta_elpd']:.1f} ± {s['delta_elpd_se']:.1f} ({s['criterion']})")
     for s in doc["rejected"]:
-        lines.append(f"  {s['effect']:24s} tried, not kept: ΔELPD {s['delta_elpd']:.1f} ± {s['delta_elpd_se']:.1f}")
-    lines.append(f"final: RMSE {doc['rmse_final']:.3g}″, effects added: {', '.join(doc['added']) or 'none'}")
-    lines.append("unexplained: " + (doc["unexplained_description"] if doc["unexplained"] else "nothing significant left"))
+        lines.append(f"  {s['effect']:24s} tried, not kept: ΔELPD {s['delta_elpd']:.1f} ± {s['delta_elpd_se']:.1f} ({s['criterion']})")
+    lines.append(f"final: RMSE {doc['rmse_final']:.3g}″ (noise estimate {doc['noise_estimate']:.3g}″), "
+                 f"effects added: {', '.join(doc['added']) or 'none'}")
+    if doc.get("final_metrics"):
+        lines.append(f"final model's metrics (mean, 95 % HDI; {doc['final_metrics']['sampler']}):")
+        for name, e in doc["final_metrics"]["metrics"].items():
+            lo, hi = e["hdi95"]
+            lines.append(f"  {name:34s} {e['mean']:11.5g}   [{lo:10.5g}, {hi:10.5g}]  {e['unit']}")
+    lines.append("unexplained: " + (doc["unexplained_description"] if doc["unexplained"] else _NOTHING_LEFT))
+    lines += [f"note: {n}" for n in doc.get("notes", [])]
     return "\n".join(lines)
 
 
-def write_diagnosis(d: Diagnosis, campaign, out_dir) -> dict:
+def final_metrics(d: Diagnosis, seed: int = 0) -> dict:
+    """The final model's metrics and physical parameters with 95 % HDIs — the ``metrics`` and
+    ``parameters`` blocks of ``fit.json``, made by the same code from the final fit's MAP and
+    draws of its Laplace approximation (what ``torsionfit fit --sampler laplace --with …``
+    reports for the effects diagnose chose)."""
+    from ..report._pipeline import FitOptions, finish_fit, fit_json
+
+    f = d.final
+    problem = f.map_result.problem
+    options = FitOptions(effects=dict(f.effects), sampler="laplace")
+    doc = fit_json(finish_fit(f.context.campaign, options, problem.model, problem, f.map_result, seed))
+    return {"effects": f.effects, "sampler": "laplace",
+            "note": "95 % HDIs from draws of the Laplace approximation at the final model's MAP; for posterior "
+                    "intervals run `torsionfit fit` with these effects (--with) and a sampler",
+            "metrics": doc["metrics"], "parameters": doc["parameters"]}
+
+
+def write_diagnosis(d: Diagnosis, campaign, out_dir, seed: int = 0) -> dict:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     doc = diagnose_json(d, campaign)
+    doc["final_metrics"] = final_metrics(d, seed)
     (out / "diagnose.json").write_text(json.dumps(doc, indent=2))
     write_figures(d, campaign, out / "figures")
     return doc
@@ -176,7 +206,7 @@ def write_figures(d: Diagnosis, campaign, folder) -> list:
         paths.append(path)
     fig, axes = plt.subplots(n, 1, figsize=(8, 1.6 * n + 1), squeeze=False, constrained_layout=True)
     _residual_panels(axes[:, 0], d.final, "final model" + (f" (+ {', '.join(s.effect for s in d.steps)})" if d.steps else " (base)"))
-    fig.suptitle(("unexplained: " + d.unexplained_description if d.unexplained else "nothing significant left")[:160]
+    fig.suptitle(("unexplained: " + d.unexplained_description if d.unexplained else _NOTHING_LEFT)[:160]
                  + f"\n{source}", fontsize=7)
     path = folder / "final-residuals.png"
     fig.savefig(path, dpi=110)
