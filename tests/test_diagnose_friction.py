@@ -57,9 +57,25 @@ def _run(tmp_path, label, effects, truth, drop, seed):
     return d
 
 
+#: known failures (numbers with the default seeds). With the ΔELPD standard error from contiguous
+#: blocks of each run — the gain of slip elements sits at the few reversals of each loop, a
+#: handful of independent pieces of evidence, not one per sample — distributed friction at these
+#: levels is not established: seed 0 ΔELPD 31.0 ± 19.8, seed 1 42.7 ± 21.6 (linearised LOO);
+#: the per-sample SE (≈ 8) had kept it. diagnose reports it in `notes` (signature log10 p −8.6 /
+#: −10.4, 2.7 / 3.5 % of the residual variance, final RMSE 1.29″ / 1.24″ against a noise estimate
+#: of 1.37″ / 1.38″), the base fit is already within AT_NOISE.
+KNOWN_FAILURES = {
+    ("distributed_friction", 0): "ΔELPD 31.0 ± 19.8 (block SE): not established at 2 SE; reported as a note",
+    ("distributed_friction", 1): "ΔELPD 42.7 ± 21.6 (block SE): not established at 2 SE; reported as a note",
+}
+
+
 @pytest.mark.parametrize("seed", SEEDS)
 @pytest.mark.parametrize("effect", list(CASES))
-def test_diagnose_finds_undeclared_friction(tmp_path, effect, seed):
+def test_diagnose_finds_undeclared_friction(tmp_path, effect, seed, request):
+    known = KNOWN_FAILURES.get((effect, seed))
+    if known:
+        request.applymarker(pytest.mark.xfail(strict=True, reason=known))
     rng = np.random.default_rng(_seed("parameters", effect, seed))
     effects, truth, drop = CASES[effect](rng)
     d = _run(tmp_path, effect, effects, truth, drop, seed)
