@@ -128,6 +128,19 @@ def _binned_curve(
     return curve
 
 
+def _shared_range(smooth: np.ndarray, segments, ids) -> tuple[float, float]:
+    """The torque range (N·m) all the segments ``ids`` of the smoothed torque cover."""
+    lo = max(float(smooth[segments[k][0] : segments[k][1] + 1].min()) for k in ids)
+    hi = min(float(smooth[segments[k][0] : segments[k][1] + 1].max()) for k in ids)
+    return lo, hi
+
+
+def _branch_curves(smooth: np.ndarray, theta: np.ndarray, segments, ids, grid: np.ndarray) -> np.ndarray:
+    """Angle of each segment in ``ids`` binned on the torque ``grid``: one row per segment."""
+    spacing = float(grid[1] - grid[0])
+    return np.array([_binned_curve(smooth[s : e + 1], theta[s : e + 1], grid, spacing) for s, e, _ in (segments[k] for k in ids)])
+
+
 def _check_arrays(name: str, time_s, torque_Nm, angle_rad) -> tuple[np.ndarray, np.ndarray]:
     tau = np.asarray(torque_Nm, dtype=float)
     theta = np.asarray(angle_rad, dtype=float)
@@ -208,23 +221,16 @@ def loop_branches(
         )
 
     # Common torque range of all branches (their smoothed extremes).
-    g_lo = max(float(smooth[segments[k][0] : segments[k][1] + 1].min()) for k in branch_ids)
-    g_hi = min(float(smooth[segments[k][0] : segments[k][1] + 1].max()) for k in branch_ids)
+    g_lo, g_hi = _shared_range(smooth, segments, branch_ids)
     if not g_lo < 0 < g_hi:
         raise InputError(
             f"hysteresis run {run.name!r}: the loop branches share only "
             f"{g_lo:.4g}..{g_hi:.4g} N·m; expected a common range through zero torque"
         )
     grid = np.linspace(g_lo, g_hi, n_grid)
-    spacing = float(grid[1] - grid[0])
 
     def curves(ids: list[int]) -> np.ndarray:
-        return np.array(
-            [
-                _binned_curve(smooth[s : e + 1], theta[s : e + 1], grid, spacing)
-                for s, e, _ in (segments[k] for k in ids)
-            ]
-        )
+        return _branch_curves(smooth, theta, segments, ids, grid)
 
     upper_all, lower_all = curves(upper_ids), curves(lower_ids)
     return LoopBranches(
@@ -413,18 +419,10 @@ def cycle_classes(
                 f"{len(ids)} ramp(s) of amplitude {amp:.3g} N·m all in one direction (no loop)"
             )
             continue
-        g_lo = max(float(smooth[segments[k][0] : segments[k][1] + 1].min()) for k in ids)
-        g_hi = min(float(smooth[segments[k][0] : segments[k][1] + 1].max()) for k in ids)
-        grid = np.linspace(g_lo, g_hi, n_grid)
-        spacing = float(grid[1] - grid[0])
+        grid = np.linspace(*_shared_range(smooth, segments, ids), n_grid)
 
         def curves(sel: list[int]) -> np.ndarray:
-            return np.array(
-                [
-                    _binned_curve(smooth[s : e + 1], theta[s : e + 1], grid, spacing)
-                    for s, e, _ in (segments[k] for k in sel)
-                ]
-            )
+            return _branch_curves(smooth, theta, segments, sel, grid)
 
         classes.append(
             AmplitudeClass(
