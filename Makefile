@@ -15,11 +15,13 @@ $(BIN)/.installed: pyproject.toml
 run: $(BIN)/.installed
 	$(BIN)/python scripts/main_job.py -o $(OUT)
 
-# the threaded batch-sampler tests run in a process of their own first: late in a long xdist
-# worker, XLA compiling inside their sampler threads crashed the worker twice (never alone)
+# the threaded batch-sampler tests and the NUTS tests run in processes of their own first: in
+# clean-clone runs a long-lived xdist worker crashed inside XLA (serialising or compiling a
+# program) three times, late in the run, never when those files ran alone
 test: $(BIN)/.installed
 	$(BIN)/python -m pytest -q tests/test_batch_sampler.py
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile --ignore tests/test_batch_sampler.py
+	$(BIN)/python -m pytest -q tests/test_nuts.py
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --ignore tests/test_batch_sampler.py --ignore tests/test_nuts.py
 
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_hysteresis_scan.py
