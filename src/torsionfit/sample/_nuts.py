@@ -46,10 +46,10 @@ import sys
 import time
 import warnings
 from dataclasses import dataclass
+import functools
 from functools import partial
 
 import arviz_stats
-import blackjax
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -238,8 +238,17 @@ def _log_density_fn(problem, coords):
 
 
 # --- compiled pieces (problem passed as an argument: its arrays are not baked into the program) --
-_INFO = blackjax.adaptation.base.get_filter_adapt_info_fn(
-    info_keys={"acceptance_rate", "is_divergent", "num_integration_steps"})
+def _bj():
+    """BlackJAX, imported on first use: processes that never sample with NUTS never load it."""
+    import blackjax
+
+    return blackjax
+
+
+@functools.lru_cache(maxsize=1)
+def _info():
+    return _bj().adaptation.base.get_filter_adapt_info_fn(
+        info_keys={"acceptance_rate", "is_divergent", "num_integration_steps"})
 
 
 @eqx.filter_jit
@@ -249,10 +258,10 @@ def _warmup(problem, coords, keys, positions, imm0, step0, num_steps: int, targe
     logdensity = _log_density_fn(problem, coords)
 
     def one(key, position, imm):
-        adapt = blackjax.window_adaptation(
-            blackjax.nuts, logdensity, is_mass_matrix_diagonal=False, initial_inverse_mass_matrix=imm,
+        adapt = _bj().window_adaptation(
+            _bj().nuts, logdensity, is_mass_matrix_diagonal=False, initial_inverse_mass_matrix=imm,
             imm_shrinkage_to_previous=SEED_PSEUDO_COUNT, initial_step_size=step0,
-            target_acceptance_rate=target_accept, adaptation_info_fn=_INFO)
+            target_acceptance_rate=target_accept, adaptation_info_fn=_info())
         (state, params), info = adapt.run(key, position, num_steps)
         return state, params["step_size"], params["inverse_mass_matrix"], jnp.sum(info.info.num_integration_steps)
 
@@ -269,7 +278,7 @@ def _sample_block(problem, coords, key, states, step_size, imm, n: int):
         keys = jax.random.split(key, n_chains)
 
         def one(k, s, eps, m):
-            return blackjax.nuts(logdensity, eps, m).step(k, s)
+            return _bj().nuts(logdensity, eps, m).step(k, s)
 
         new, info = jax.vmap(one)(keys, states, step_size, imm)
         u, logjac = jax.vmap(coords.to_u)(new.position)
@@ -282,7 +291,7 @@ def _sample_block(problem, coords, key, states, step_size, imm, n: int):
 
 @eqx.filter_jit
 def _init_states(problem, coords, positions):
-    return jax.vmap(lambda p: blackjax.nuts.init(p, _log_density_fn(problem, coords)))(positions)
+    return jax.vmap(lambda p: _bj().nuts.init(p, _log_density_fn(problem, coords)))(positions)
 
 
 # --- diagnostics --------------------------------------------------------------------------------
@@ -421,7 +430,7 @@ def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int
     total = chain.shape[0] * chain.shape[1]
     tau = np.where(bulk > 0, total / np.where(bulk > 0, bulk, 1.0), np.inf)
     accept = blocks["accept"]
-    bj = getattr(blackjax, "__version__", "?")
+    bj = getattr(_bj(), "__version__", "?")
     return NutsResult(
         chain=chain, log_prob=blocks["logdensity"], tau=tau, n_steps=int(n_warmup + chain.shape[0]),
         burn_in=int(n_warmup), thin=1, acceptance_fraction=accept.mean(axis=0), converged=bool(converged),
