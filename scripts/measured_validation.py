@@ -39,6 +39,7 @@ import numpy as np
 
 import torsionfit  # noqa: F401
 from torsionfit.fit import NoiseOptions, model_inputs
+from torsionfit.fit._problem import cycle_amplitude_shape
 from torsionfit.io import decimate, load_campaign
 from torsionfit.metrics._hysteresis import loading_compliance_from_arrays, play_from_arrays
 from torsionfit.report import FitOptions, fit_campaign
@@ -107,7 +108,8 @@ def validate(unit: str, folder: Path, args) -> dict:
     t0 = time.perf_counter()
     fit = fit_campaign(train, FitOptions(effects=args.effects, sampler=args.sampler, progress=False,
                                          decimate=args.decimate, max_steps=args.max_steps,
-                                         n_starts=args.starts, noise=NoiseOptions(ar1=False if args.iid else None)),
+                                         n_starts=args.starts, noise=NoiseOptions(ar1=False if args.iid else None,
+                                                            cycle_amplitude_noise=args.cycle_noise)),
                        seed=args.seed)
     seconds = time.perf_counter() - t0
     problem = fit.problem
@@ -125,10 +127,15 @@ def validate(unit: str, folder: Path, args) -> dict:
     marginal = float(sigma[0] / np.sqrt(1.0 - float(rho[0]) ** 2))
     run = whole.runs[0]
     y = np.asarray(run.angle_rad)
+    if args.cycle_noise:
+        # noise level of the largest cycles, scaled by the amplitude of each sample's cycle
+        s = float(np.exp(fit.map_result.u[problem.n_nonlinear]))
+        shape = cycle_amplitude_shape(run.torque_Nm)
+        marginal = np.sqrt((s * shape) ** 2 + float(problem.floors[0]) ** 2) / np.sqrt(1.0 - float(rho[0]) ** 2)
     nr = _block(_test_nr_of(path), args.decimate, len(y), np.min)
     held = nr == last
     mean = pred.mean(axis=0)
-    noisy = pred[:, held] + marginal * rng.standard_normal(pred[:, held].shape)
+    noisy = pred[:, held] + np.broadcast_to(marginal, y.shape)[held] * rng.standard_normal(pred[:, held].shape)
     lo, hi = np.quantile(noisy, [0.05, 0.95], axis=0)
     inside = float(np.mean((y[held] >= lo) & (y[held] <= hi)))
     large_train = (nr >= 100) & ~held
@@ -140,7 +147,7 @@ def validate(unit: str, folder: Path, args) -> dict:
         "rmse_held_out_arcsec": float(np.sqrt(np.mean((y[held] - mean[held]) ** 2)) / ARCSEC),
         "held_out_ramp": last,
         "coverage90_held_out": inside,
-        "noise_marginal_arcsec": marginal / ARCSEC,
+        "noise_marginal_arcsec": float(np.max(marginal)) / ARCSEC,
         "diagnostics": fit.diagnostics,
         "physics_map": {k: float(np.asarray(v)) for k, v in fit.map_result.values.items() if np.ndim(v) == 0},
     }
@@ -325,6 +332,8 @@ def main(argv=None) -> int:
     parser.add_argument("--max-steps", type=int, default=20_000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--iid", action="store_true", help="iid noise instead of AR(1) (for comparison)")
+    parser.add_argument("--cycle-noise", action="store_true",
+                        help="noise level scaled by the amplitude of each sample's torque cycle (NoiseOptions.cycle_amplitude_noise)")
     parser.add_argument("--effects", type=json.loads, default=EFFECTS, help=f"model effects as JSON (default {json.dumps(EFFECTS)})")
     parser.add_argument("--table-only", action="store_true", help="re-write validation.md from OUTPUT/validation.json")
     args = parser.parse_args(argv)

@@ -54,3 +54,28 @@ def test_shared_later_passes_give_the_map_of_every_start_run_alone(problem, monk
     best_u, best_ld = max(alone, key=lambda x: x[1])
     assert abs(result.log_density - best_ld) < 1e-8 * abs(best_ld)
     assert np.max(np.abs(result.u - best_u) / np.maximum(np.abs(best_u), 1.0)) < 1e-5
+
+
+def test_a_nested_models_optimum_warm_starts_the_extension(problem):
+    """diagnose tries each extension from the current model's optimum too: the extension then
+    ends at least as high as that start, whatever its own prior-centred starts find."""
+    base = fit_map(problem, n_starts=1, seed=0)
+    campaign = simulate(load_bench(BENCH), seed=3).campaign
+    names = [r.name for r in campaign.runs]
+    model = model_with_effects([r.kind for r in campaign.runs], {"asymmetry": True}, campaign.reducer.rated_torque_Nm,
+                               free_friction_start=True)
+    extended = build_problem(campaign, model)
+    base_names = problem.names(tuple(f"run{i}" for i in range(problem.n_runs)))
+    start = _map.nested_start(extended, tuple(f"run{i}" for i in range(extended.n_runs)), base.u, base_names)
+    ext_names = extended.names(tuple(f"run{i}" for i in range(extended.n_runs)))[:extended.n_nonlinear]
+    shared = [j for j, n in enumerate(ext_names) if n in base_names]
+    new = [j for j, n in enumerate(ext_names) if n not in base_names]
+    assert new and len(shared) == problem.n_nonlinear  # the extension adds parameters, keeps the others
+    assert np.allclose(start[shared], [base.u[base_names.index(ext_names[j])] for j in shared])
+    assert np.allclose(start[new], np.asarray(extended.prior_mean)[new])
+    warm = fit_map(extended, names, n_starts=1, seed=0, warm_starts=start[None, :])
+    ld_start = float(_map.log_density(extended, jnp.concatenate([jnp.asarray(start), _map.iid_noise(extended)])))
+    assert warm.log_density >= ld_start
+    assert len(warm.starts) == 2  # the warm start, then the prior centre
+    with pytest.raises(ValueError, match="warm starts have"):
+        fit_map(extended, names, n_starts=1, warm_starts=np.zeros((1, 3)))

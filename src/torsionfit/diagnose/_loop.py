@@ -14,7 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._x64 import in_float64
 from ..fit import NoiseOptions, build_problem, fit_map
+from ..fit._map import nested_start
 from ..io import Campaign
 from ..model import model_with_effects
 from ..units import ANGLE_UNITS
@@ -87,12 +89,22 @@ class Diagnosis:
     noise_arcsec: float  # the measurement noise of the final fit's residuals (RMS over all samples)
 
 
-def fit_with(campaign: Campaign, effects: dict, options: DiagnoseOptions, seed: int) -> Fitted:
+@in_float64
+def fit_with(campaign: Campaign, effects: dict, options: DiagnoseOptions, seed: int,
+             warm: "Fitted | None" = None) -> Fitted:
+    """MAP fit of ``campaign`` with ``effects``. ``warm``: the fit this one extends — its optimum
+    is tried as a start as well, so an extension never ends below the model it contains
+    because its own starts (from the prior) fell into a worse optimum."""
     t0 = time.perf_counter()
     model = model_with_effects([r.kind for r in campaign.runs], effects, campaign.reducer.rated_torque_Nm,
                                free_friction_start=True)
     problem = build_problem(campaign, model, options.noise)
-    result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed)
+    names = [r.name for r in campaign.runs]
+    starts = None
+    if warm is not None:
+        prev = warm.map_result
+        starts = nested_start(problem, names, prev.u, prev.names)[None, :]
+    result = fit_map(problem, names, n_starts=options.n_starts, seed=seed, warm_starts=starts)
     ctx = fit_context(campaign, effects, result)
     scored = score(problem, result, options.loo_draws, seed)
     resid = np.concatenate([r.residual for r in ctx.runs]) / ARCSEC
@@ -113,6 +125,7 @@ def _signatures(ctx: FitContext, options: DiagnoseOptions, added: set) -> list[t
     return out
 
 
+@in_float64
 def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), seed: int = 0,
              progress=None) -> Diagnosis:
     """Close the loop on ``campaign``: see the module docstring. ``progress(text)`` is called
@@ -133,7 +146,7 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
         for effect, ev in candidates[: options.candidates_per_step]:
             trial_effects = effect.extend(effects, ev, current.context)
             say(f"trying {effect.name} (log10 p = {ev.log10_p:.1f})")
-            trial = fit_with(campaign, trial_effects, options, seed)
+            trial = fit_with(campaign, trial_effects, options, seed, warm=current)
             c = compare(current.score, trial.score)
             if c.delta > options.min_delta_elpd and c.delta > options.se_factor * c.se:
                 accepted = Step(effect.name, ev, current, trial, c, kept=True)

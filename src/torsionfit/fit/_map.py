@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from .._x64 import in_float64
 from ._problem import NOISE_PRIOR_SD, RHO_PRIOR_SD, FitProblem
 
 _RHO_MAX = 0.995
@@ -47,8 +48,15 @@ def _noise_update(problem: FitProblem, u):
             e0 = e - jnp.mean(e)
             rho = jnp.clip(jnp.dot(e0[1:], e0[:-1]) / jnp.maximum(jnp.dot(e0, e0), 1e-300), 0.01, _RHO_MAX)
             logits.append(jnp.log(rho) - jnp.log1p(-rho))
-        var = jnp.mean((e[1:] - rho * e[:-1]) ** 2)
+        innov2 = (e[1:] - rho * e[:-1]) ** 2
         floor2 = problem.floors[r] ** 2
+        if problem.noise_shape is not None:
+            # σ_i² = (s w_i)² + floor²: s² from the innovations above the floor, each over w_i²
+            w2 = problem.noise_shape[r][1:] ** 2
+            var_s = jnp.mean(jnp.maximum(innov2 - floor2, 0.0) / w2)
+            log_s.append(0.5 * jnp.log(jnp.maximum(var_s, 1e-4 * jnp.maximum(floor2, 1e-26))))
+            continue
+        var = jnp.mean(innov2)
         log_s.append(0.5 * jnp.log(jnp.maximum(var - floor2, jnp.maximum(1e-4 * jnp.maximum(floor2, var), 1e-30))))
     return jnp.stack(log_s + logits)
 
@@ -79,6 +87,7 @@ def laplace_parts(problem: FitProblem, u):
 _laplace_parts = eqx.filter_jit(laplace_parts)
 
 
+@in_float64
 def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
     """Laplace covariance of u at the MAP: Gauss–Newton (JᵀJ)⁻¹ for the physics (J of the
     whitened residuals and prior pseudo-residuals), the asymptotic variances for the noise
@@ -88,6 +97,7 @@ def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
     return laplace_from_parts(problem, u, jac, sigma, rho)
 
 
+@in_float64
 def laplace_from_parts(problem: FitProblem, u, jac, sigma, rho) -> np.ndarray:
     """:func:`laplace_covariance` from its parts at u: the physics Jacobian ``jac`` and the noise
     values (σ_r, ρ_r) — computed for many units at once by ``torsionfit.batch``."""
@@ -133,6 +143,7 @@ class MapResult:
     def sd(self) -> np.ndarray:
         return np.sqrt(np.clip(np.diag(self.cov), 0, None))
 
+    @in_float64
     def components(self) -> list[dict]:
         """Model components per run at the MAP (rad)."""
         inputs = self.problem.corrected_inputs(jnp.asarray(self.u))
@@ -149,6 +160,7 @@ def _message(result) -> str:
         return f"optimistix result {result}"
 
 
+@in_float64
 def map_starts(problem: FitProblem, n_starts: int, seed: int) -> np.ndarray:
     """(n_starts, n_nonlinear) starting points: the prior centre, then draws around it."""
     rng = np.random.default_rng(seed)
@@ -159,6 +171,28 @@ def map_starts(problem: FitProblem, n_starts: int, seed: int) -> np.ndarray:
     return np.stack(starts)
 
 
+def _with_warm_starts(starts: np.ndarray, warm) -> np.ndarray:
+    if warm is None or not len(warm):
+        return starts
+    warm = np.atleast_2d(np.asarray(warm, float))
+    if warm.shape[1] != starts.shape[1]:
+        raise ValueError(f"warm starts have {warm.shape[1]} entries, the problem's non-linear block {starts.shape[1]}")
+    return np.concatenate([warm, starts])
+
+
+def nested_start(problem: FitProblem, run_names, u_from, names_from) -> np.ndarray:
+    """A starting point for ``problem`` from another fit of the same runs: every non-linear
+    entry whose name the other fit has takes its value there, the rest their prior centre (for a
+    model that extends the other one: its optimum, with the new parameters at their priors)."""
+    start = np.asarray(problem.prior_mean, float).copy()
+    index = {name: i for i, name in enumerate(names_from)}
+    for j, name in enumerate(problem.names(run_names)[:problem.n_nonlinear]):
+        if name in index:
+            start[j] = float(u_from[index[name]])
+    return start
+
+
+@in_float64
 def iid_noise(problem: FitProblem) -> jnp.ndarray:
     """The first pass's noise block: prior noise levels, ρ ≈ 0 (iid)."""
     return jnp.asarray(np.concatenate([np.asarray(problem.noise_prior_mean), np.full(problem.n_ar1, -30.0)]))
@@ -197,22 +231,24 @@ def same_optimum(firsts) -> list[int]:
     return rep
 
 
+@in_float64
 def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int = 0,
             max_steps: int = 300, noise_passes: int = 3, rtol: float = 1e-8,
-            atol: float = 1e-10) -> MapResult:
+            atol: float = 1e-10, warm_starts=None) -> MapResult:
     """MAP by Levenberg–Marquardt from ``n_starts`` starts (the prior centre, then draws around
     it). The first pass treats the noise as iid (with ρ near 1 the whitened residuals are
     increments, and a fit from far away can match the loop's shape but not its level);
     between passes the noise level and AR(1) coefficient are re-estimated in closed form.
     Starts whose first pass ends at the same optimum (:data:`SAME_OPTIMUM_RTOL`) share the
-    later passes: they would repeat the same steps from the same point."""
+    later passes: they would repeat the same steps from the same point. ``warm_starts``:
+    (k, n_nonlinear) further starting points tried first (e.g. a nested model's optimum)."""
     if noise_passes < 1:
         raise ValueError(f"noise_passes must be at least 1, got {noise_passes}")
     run_names = tuple(run_names or (f"run{i}" for i in range(problem.n_runs)))
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
     iid = iid_noise(problem)
     firsts = [_solve_pass(problem, jnp.asarray(start), iid, solver, max_steps)
-              for start in map_starts(problem, n_starts, seed)]
+              for start in _with_warm_starts(map_starts(problem, n_starts, seed), warm_starts)]
     rep = same_optimum([f[0] for f in firsts])
     finals = {}
     for j in sorted(set(rep)):

@@ -30,6 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import in_float64
 from .. import model as m
 from .._errors import InputError
 from ..io import Campaign, HysteresisRun
@@ -53,8 +54,31 @@ class NoiseOptions:
     # Gaussian formula: an approximation, exact only in the Gaussian limit.
     student_t_dof: float | None = None
     denoise_fraction: float | None = None  # smoother half-width per segment (None: by GCV)
+    # True: the noise above the floor of a hysteresis run scales with the amplitude of the
+    # torque cycle a sample belongs to (s_r is the level of the run's largest cycles). For
+    # measured loops whose misfit grows with the load: with one level for a whole file the
+    # ±4 N·m play ramps sit far below the ±40 N·m ramps' misfit and the fit ignores them.
+    cycle_amplitude_noise: bool = False
 
 
+CYCLE_NOISE_MIN_SHARE = 0.05  # smallest noise shape (share of the largest cycles' level)
+
+
+def cycle_amplitude_shape(torque_Nm) -> np.ndarray:
+    """Per-sample noise shape in (0, 1] of a hysteresis record: the peak |torque| of the monotone
+    ramp a sample lies on over the record's largest, floored at ``CYCLE_NOISE_MIN_SHARE``."""
+    tau = np.asarray(torque_Nm, float)
+    smooth, segments = monotone_segments(tau, reversal_fraction=0.05)
+    amp = np.zeros(tau.size)
+    for a, b, _ in segments:
+        amp[a:b + 1] = np.maximum(amp[a:b + 1], max(abs(smooth[a]), abs(smooth[b])))
+    top = float(np.max(amp)) if amp.size else 0.0
+    if not top > 0:
+        return np.ones(tau.size)
+    return np.maximum(amp / top, CYCLE_NOISE_MIN_SHARE)
+
+
+@in_float64
 def model_inputs(campaign: Campaign, denoise_fraction: float | None = None, return_variance: bool = False):
     """Per-run model inputs; hysteresis runs are driven by the denoised measured torque. With
     ``return_variance`` also the variance of that torque per sample (zeros for TE runs)."""
@@ -122,6 +146,7 @@ class FitProblem(eqx.Module):
     prior_mean: jnp.ndarray
     prior_sd: jnp.ndarray
     noise_prior_mean: jnp.ndarray
+    noise_shape: list | None = None  # per run: per-sample multiplier of s_r (None: constant)
 
     # --- sizes -----------------------------------------------------------------------------
     @property
@@ -228,7 +253,7 @@ class FitProblem(eqx.Module):
         """Innovation sd per sample: √(σ_r² + (dθ̂/dτ̂)²·var τ̂). The second term carries the
         error of the denoised drive torque into the angle (errors in variables): it matters
         where the loop is steep, e.g. while lost motion closes around zero torque."""
-        sigma, _ = self.noise_values(u)
+        sigma = self.sample_sigma(u)
         scales = []
         for r, (f, inp, var) in enumerate(zip(preds, self.inputs, self.torque_var)):
             if isinstance(inp, m.HysteresisInput) and f.shape[0] > 2:
@@ -241,6 +266,13 @@ class FitProblem(eqx.Module):
             else:
                 scales.append(sigma[r] * jnp.ones_like(f))
         return scales
+
+    def sample_sigma(self, u) -> list:
+        """Noise sd per run (a scalar) or per sample (with a noise shape): √((s_r w_i)² + floor_r²)."""
+        if self.noise_shape is None:
+            return list(self.noise_values(u)[0])
+        s = jnp.exp(u[self.n_nonlinear:self.n_nonlinear + self.n_runs])
+        return [jnp.sqrt((s[r] * w) ** 2 + self.floors[r] ** 2) for r, w in enumerate(self.noise_shape)]
 
     def profile(self, u, return_scales: bool = False):
         """Solve the linear parameters for u: (whitened residuals per run, β, log det A)."""
@@ -352,6 +384,7 @@ def _hat_basis(n: int, knots: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(idx, knots, eye[j]) for j in range(len(knots))], axis=1)
 
 
+@in_float64
 def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOptions = NoiseOptions(),
                   latent_torque: bool = True) -> FitProblem:
     """The fitting problem for ``campaign`` under ``model``; InputError on unusable data."""
@@ -383,6 +416,10 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
             knot_sd.append(np.sqrt(np.maximum(var[knots], 1e-12)))
         else:
             bases.append(jnp.asarray(np.zeros((len(run), 0))))
+    shape = None
+    if noise.cycle_amplitude_noise:
+        shape = [jnp.asarray(cycle_amplitude_shape(run.torque_Nm) if isinstance(run, HysteresisRun)
+                             else np.ones(len(run))) for run in campaign.runs]
     if knot_sd:
         prior_mean = np.concatenate([prior_mean, np.zeros(sum(len(k) for k in knot_sd))])
         prior_sd = np.concatenate([prior_sd, *knot_sd])
@@ -390,4 +427,5 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
         model=model, physics=physics, linear=linear, ar1=ar1, student_t_dof=noise.student_t_dof,
         inputs=inputs, y=y, torque_var=[jnp.asarray(v) for v in torque_var], design=design, knot_basis=bases, floors=jnp.asarray(np.full(len(y), floor)),
         prior_mean=jnp.asarray(prior_mean), prior_sd=jnp.asarray(prior_sd), noise_prior_mean=jnp.asarray(np.log(1e-2 * ranges)),
+        noise_shape=shape,
     )
