@@ -5,9 +5,11 @@ from ._config import (
     Bench as Bench,
     HysteresisSpec as HysteresisSpec,
     Noise as Noise,
+    TEExport as TEExport,
     TESpec as TESpec,
     load_bench as load_bench,
 )
+from ._export import write_te_export as write_te_export
 from ._simulate import (
     Simulation as Simulation,
     five_step_protocol as five_step_protocol,

@@ -45,6 +45,19 @@ class TESpec:
     torque_Nm: float
     direction: int
     revolutions: float = 1.0
+    temperature_C: float | None = None  # nominal temperature of the run (written as temperature_C)
+
+
+@dataclass(frozen=True)
+class TEExport:
+    """A TE bench that logs the way real ones do (``[te_export]`` of a bench file): one test per
+    (load, speed, temperature) holding its forward and backward revolution, samples clocked at
+    ``sample_rate_Hz`` (no time column), encoders re-zeroed before every test (the TE zero
+    moves by ``zero_shift_arcmin[i]`` in test ``i``), written side by side by
+    :func:`write_te_export`."""
+
+    sample_rate_Hz: float
+    zero_shift_arcmin: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -63,12 +76,13 @@ class Bench:
     effects: dict = field(default_factory=dict)
     noise: Noise = Noise()
     te_samples_per_rev: int = 720
+    te_export: TEExport | None = None  # log TE runs as a TE bench export (see TEExport)
     seed: int = 0
     label: str = ""
     path: Path | None = None
 
 
-_TOP = {"label", "seed", "reducer", "instrument", "noise", "effects", "truth", "runs", "te_samples_per_rev"}
+_TOP = {"label", "seed", "reducer", "instrument", "noise", "effects", "truth", "runs", "te_samples_per_rev", "te_export"}
 
 
 def _check_keys(table: dict, allowed, where: str):
@@ -166,7 +180,7 @@ def load_bench(path) -> Bench:
                 play_torque_Nm=play_torque if play_cycles else None,
             ))
         elif kind == "transmission_error":
-            _check_keys(r, {"name", "kind", "speed_rpm", "torque_Nm", "direction", "revolutions"}, where)
+            _check_keys(r, {"name", "kind", "speed_rpm", "torque_Nm", "direction", "revolutions", "temperature_C"}, where)
             direction = r.get("direction", "forward")
             if direction not in ("forward", "backward"):
                 raise InputError(f"{where}.direction: expected 'forward' or 'backward', got {direction!r}")
@@ -176,14 +190,47 @@ def load_bench(path) -> Bench:
                 torque_Nm=_num(r, "torque_Nm", where, required=True),
                 direction=1 if direction == "forward" else -1,
                 revolutions=_num(r, "revolutions", where, 1.0, positive=True),
+                temperature_C=_num(r, "temperature_C", where),
             ))
         else:
             raise InputError(f"{where}.kind: expected 'hysteresis' or 'transmission_error', got {kind!r}")
+    te_export = _te_export(doc.get("te_export"), runs, reducer, w)
     label = doc.get("label") or f"SYNTHETIC data made by torsionfit simulate from {path.name}"
     if "synthetic" not in label.lower():
         label = "SYNTHETIC: " + label
     return Bench(
         reducer=reducer, instrument=instrument, runs=tuple(runs), truth=truth, effects=dict(effects),
-        noise=noise, te_samples_per_rev=int(doc.get("te_samples_per_rev", 720)),
+        noise=noise, te_samples_per_rev=int(doc.get("te_samples_per_rev", 720)), te_export=te_export,
         seed=int(doc.get("seed", 0)), label=label, path=path,
     )
+
+
+def te_tests(runs) -> list[tuple]:
+    """The tests of a TE bench export: the distinct (torque, speed, temperature) of the TE runs,
+    in order of first appearance (each test's forward and backward runs share one zero)."""
+    return list(dict.fromkeys((r.torque_Nm, r.speed_rpm, r.temperature_C) for r in runs if isinstance(r, TESpec)))
+
+
+def _te_export(table, runs, reducer: Reducer, w: str) -> TEExport | None:
+    if table is None:
+        return None
+    where = f"{w} [te_export]"
+    if not isinstance(table, dict):
+        raise InputError(f"{where}: expected a table")
+    _check_keys(table, {"sample_rate_Hz", "zero_shift_arcmin"}, where)
+    if any(isinstance(r, HysteresisSpec) for r in runs):
+        raise InputError(f"{where}: a TE bench export holds TE runs only; expected no hysteresis [[runs]]")
+    if reducer.ratio is None:
+        raise InputError(f"{where}: needs [reducer] ratio (the export names the motor speed, output speed × ratio)")
+    shifts = table.get("zero_shift_arcmin", [])
+    tests = te_tests(runs)
+    if not (isinstance(shifts, list) and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in shifts)
+            and len(shifts) in (0, len(tests))):
+        raise InputError(f"{where}.zero_shift_arcmin: expected a list of {len(tests)} numbers (one per test), got {shifts!r}")
+    for test in tests:
+        ways = sorted(r.direction for r in runs if (r.torque_Nm, r.speed_rpm, r.temperature_C) == test)
+        if ways != [-1, 1]:
+            raise InputError(f"{where}: the test at {test[0]:g} N·m, {test[1]:g} rpm needs one forward and one "
+                             f"backward run, got {len(ways)} run(s)")
+    return TEExport(sample_rate_Hz=_num(table, "sample_rate_Hz", where, positive=True, required=True),
+                    zero_shift_arcmin=tuple(float(v) for v in shifts))

@@ -1,5 +1,6 @@
 """Simulate a campaign on the virtual bench: the forward model plus sensor models."""
 
+import dataclasses
 from dataclasses import dataclass
 
 import jax.numpy as jnp
@@ -10,7 +11,7 @@ from ..model import model_with_effects as truth_model
 from .._errors import InputError
 from ..io import Campaign, HysteresisRun, TransmissionErrorRun
 from ..units import ANGLE_UNITS
-from ._config import Bench, HysteresisSpec, TESpec
+from ._config import Bench, HysteresisSpec, TESpec, te_tests
 
 _ARCSEC = ANGLE_UNITS["arcsec"]
 _LINEAR_DEFAULTS = ("angle_offset", "te_offset", "drift", "kin_cos", "kin_sin")
@@ -94,7 +95,14 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
     where = str(bench.path or "bench")
     kinds = ["hysteresis" if isinstance(r, HysteresisSpec) else "transmission_error" for r in bench.runs]
     model = truth_model(kinds, bench.effects, bench.reducer.rated_torque_Nm)
-    truth = _complete_truth(model, bench.truth, where)
+    export = bench.te_export
+    tests = te_tests(bench.runs) if export is not None else []
+    truth_table = dict(bench.truth)
+    if export is not None:  # encoders re-zeroed before every test: one TE zero per test
+        model = dataclasses.replace(model, te_zero_groups=len(tests))
+        if export.zero_shift_arcmin:
+            truth_table["te_offset"] = [v * _ARCSEC * 60.0 for v in export.zero_shift_arcmin]
+    truth = _complete_truth(model, truth_table, where)
     ins = bench.instrument
     res = None if ins.encoder_resolution_arcsec is None else ins.encoder_resolution_arcsec * _ARCSEC
     torque_sd = bench.noise.torque_sd_Nm if bench.noise.torque_sd_Nm is not None else (ins.torque_sd_Nm or 0.0)
@@ -119,16 +127,22 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
             inputs.append(m.hysteresis_input(t, tau + offset))  # the sensor reads true torque + offset
             drives.append(tau)
         else:
-            n = int(round(spec.revolutions * bench.te_samples_per_rev))
+            # an export's logger runs at a fixed clock: its samples per revolution follow the speed
+            per_rev = bench.te_samples_per_rev if export is None else export.sample_rate_Hz * 60.0 / spec.speed_rpm
+            n = int(round(spec.revolutions * per_rev))
             # samples are clocked, not triggered by position: each lands within ±¼ step of its
             # nominal angle, so quantisation errors differ from sample to sample
-            step = 2 * np.pi / bench.te_samples_per_rev
-            phi = np.linspace(0.0, 2 * np.pi * spec.revolutions, n + 1) + rng.uniform(-0.25, 0.25, n + 1) * step
+            step = 2 * np.pi / per_rev
+            # an export's forward revolution logs a sample more than its backward one (the NaN pad)
+            extra = int(export is not None and spec.direction > 0)
+            phi = np.linspace(0.0, 2 * np.pi * spec.revolutions * (n + extra) / n, n + 1 + extra)
+            phi = phi + rng.uniform(-0.25, 0.25, n + 1 + extra) * step
             if spec.direction < 0:
                 phi = phi[::-1]
-            clock = np.arange(n + 1) * step / (spec.speed_rpm * 2 * np.pi / 60)  # clocked samples
-            inputs.append(m.te_input(phi, spec.torque_Nm + offset, spec.speed_rpm, spec.direction, clock))
-            drives.append(np.full(n + 1, spec.torque_Nm))
+            clock = np.arange(len(phi)) * step / (spec.speed_rpm * 2 * np.pi / 60)  # clocked samples
+            group = tests.index((spec.torque_Nm, spec.speed_rpm, spec.temperature_C)) if tests else 0
+            inputs.append(m.te_input(phi, spec.torque_Nm + offset, spec.speed_rpm, spec.direction, clock, group))
+            drives.append(np.full(len(phi), spec.torque_Nm))
     comps = model.components(truth, inputs)
 
     runs, hyst_i = [], 0
@@ -167,8 +181,19 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
                 speed_rpm=spec.speed_rpm,
                 direction=spec.direction,
                 time_s=np.asarray(inp.time_s),
-                torque_series_Nm=tau + offset + rng.normal(0.0, torque_sd, len(tau)),
+                # an export logs no torque series (its load is the test's nominal one)
+                torque_series_Nm=None if export else tau + offset + rng.normal(0.0, torque_sd, len(tau)),
                 source="synthetic",
+                zero_group=None if export is None else export_stem(bench.reducer, tests[int(inp.zero_group)]),
+                nominal_temperature_C=spec.temperature_C,
             ))
     campaign = Campaign(reducer=bench.reducer, instrument=bench.instrument, runs=tuple(runs), notes=bench.label)
     return Simulation(campaign=campaign, model=model, truth=truth, components=comps, measured_torque_true=drives)
+
+
+def export_stem(reducer, test: tuple) -> str:
+    """File stem (and zero group) of one test of a TE bench export: motor speed and load, as
+    such benches name their files (``TE_486rpm_500Nm``, ``_40C`` with a temperature)."""
+    torque, speed, temperature = test
+    stem = f"TE_{speed * reducer.ratio:g}rpm_{torque:g}Nm"
+    return stem if temperature is None else f"{stem}_{temperature:g}C"

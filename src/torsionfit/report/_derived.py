@@ -23,7 +23,9 @@ import numpy as np
 from .. import model as m
 from .._chunks import CHUNK, map_chunks
 from ..io import Campaign
+from ..metrics._campaign import reference_run_for
 from ..metrics._hysteresis import LOADING_FIT_TOP, grouped_cycles
+from ..metrics._te import TE_WINDOW_DEG, in_te_window, te_reading
 from ..units import ANGLE_UNITS, SPEED_UNITS, STIFFNESS_UNITS
 
 ARCMIN = ANGLE_UNITS["arcmin"]
@@ -155,6 +157,23 @@ def _single_run_params(model: m.CampaignModel, params: dict) -> dict:
     return out
 
 
+def _te_metric_grid(window_points: int = 41, revolution_points: int = 720):
+    """Output angles (rad) the model's TE metrics are read at, with ``te_reading``'s window flags
+    and revolution weights: ``window_points`` evenly over the 180° window (weight 0) then
+    ``revolution_points`` evenly over one revolution (window flag 0, equal weights) — the
+    continuous limit of the data's samples."""
+    half = np.deg2rad(TE_WINDOW_DEG)
+    window = np.pi + np.linspace(-half, half, window_points)
+    revolution = np.linspace(0.0, 2 * np.pi, revolution_points + 1)[:-1]
+    phi = np.concatenate([window, revolution])
+    in_window = np.concatenate([in_te_window(window), np.zeros(revolution_points)])
+    weight = np.concatenate([np.zeros(window_points), np.ones(revolution_points)])
+    return phi, in_window, weight
+
+
+_TE_GRID = _te_metric_grid()
+
+
 class DerivedMetrics(eqx.Module):
     """Metric values (one vector per draw) of a campaign's model. Build with
     :func:`derived_metrics_for`, evaluate with ``evaluate(values)`` or ``over_draws``."""
@@ -169,6 +188,8 @@ class DerivedMetrics(eqx.Module):
     # with other rated torques would compile the metrics anew for each
     rated: jnp.ndarray  # T_r, N·m
     lost_motion_fraction: jnp.ndarray  # x of the lost motion at ±x·T_r
+    #: directions (+1, −1) with a no-load TE run in the campaign: K_d there is against the no-load TE
+    te_reference_directions: tuple = eqx.field(static=True, default=())
 
     def evaluate(self, values: dict) -> jnp.ndarray:
         """All metrics (in ``specs`` order, their units) for one parameter set (SI)."""
@@ -208,10 +229,13 @@ class DerivedMetrics(eqx.Module):
         if self.bench is not None:
             out += self._bench_metrics(params)
         if self.te_model is not None:
-            for inp in self.te_inputs:
-                te = self._te_twist(values, inp)
-                out.append(jnp.abs(inp.torque_Nm) / jnp.abs(te[0]) / NM_PER_ARCMIN)  # at 180°
-                out.append(jnp.abs(inp.torque_Nm) / jnp.abs(jnp.mean(te[1:])) / NM_PER_ARCMIN)  # revolution mean
+            in_window, weight = _TE_GRID[1], _TE_GRID[2]
+            for loaded, reference in self.te_inputs:
+                te = self._te_twist(values, loaded)
+                ref = jnp.zeros_like(te) if reference is None else self._te_twist(values, reference)
+                _, _, kinematic_180, kd, kt = te_reading(loaded.torque_Nm, te, ref, in_window, weight,
+                                                         has_reference=reference is not None)
+                out += [kd / NM_PER_ARCMIN, kt / NM_PER_ARCMIN, kinematic_180 / ARCMIN]
         return jnp.stack([jnp.asarray(v, float) for v in out])
 
     def _bench_metrics(self, params) -> list:
@@ -250,14 +274,19 @@ class DerivedMetrics(eqx.Module):
         return map_chunks(lambda v: _metrics_over_draws(kernel, v), values_batch, chunk)
 
     def kd_over_draws(self, values_batch: dict, torque_Nm, speed_rpm, direction) -> np.ndarray:
-        """K_d = τ / TE(180°) (N·m/arcmin) of the model at any TE conditions, as ``kd_mean``:
-        (draws, conditions) for stacked parameter draws and 1-D arrays of load torque (N·m),
-        output speed (rpm) and direction (+1 forward, −1 backward). Needs TE runs in the
-        campaign (``te_model``), since only they carry TE-only physics such as speed terms."""
+        """K_d = τ / TE(180°) (N·m/arcmin) of the model at any TE conditions, read as ``kd_mean``
+        (``metrics.te_reading`` over the 180° window): (draws, conditions) for stacked parameter
+        draws and 1-D arrays of load torque (N·m), output speed (rpm) and direction (+1 forward,
+        −1 backward). The reference is the model's no-load TE at the condition's speed and
+        direction when the campaign has a no-load TE run in that direction, else the model's
+        zero. Needs TE runs in the campaign (``te_model``), since only they carry TE-only
+        physics such as speed terms."""
         if self.te_model is None:
             raise ValueError("K_d needs a campaign with TE runs")
         speed_rad_s = jnp.asarray(speed_rpm, float) * SPEED_UNITS["rpm"]
-        conditions = (jnp.asarray(torque_Nm, float), speed_rad_s, jnp.asarray(direction, float))
+        d = jnp.asarray(direction, float)
+        has_ref = jnp.where(d > 0, 1.0 * (1 in self.te_reference_directions), 1.0 * (-1 in self.te_reference_directions))
+        conditions = (jnp.asarray(torque_Nm, float), speed_rad_s, d, has_ref)
         kernel = self._kernel()
         return map_chunks(lambda v: _kd_over_draws(kernel, v, *conditions), values_batch)
 
@@ -268,15 +297,21 @@ def _metrics_over_draws(derived: DerivedMetrics, values_batch: dict):
 
 
 @eqx.filter_jit
-def _kd_over_draws(derived: DerivedMetrics, values_batch: dict, torque_Nm, speed_rad_s, direction):
-    phi, t0 = jnp.asarray([jnp.pi]), jnp.zeros(1)
+def _kd_over_draws(derived: DerivedMetrics, values_batch: dict, torque_Nm, speed_rad_s, direction, has_ref):
+    # the 180° window of the metrics' grid: K_d reads nothing else
+    inside = _TE_GRID[1] > 0
+    phi = jnp.asarray(_TE_GRID[0][inside])
+    t0, in_window = jnp.zeros(phi.shape), jnp.ones(phi.shape)
 
-    def one(values, tau, v, d):
+    def one(values, tau, v, d, r):
         te = derived._te_twist(values, m.TEInput(phi, t0, tau, v, d))
-        return jnp.abs(tau) / jnp.abs(te[0]) / NM_PER_ARCMIN
+        ref = r * derived._te_twist(values, m.TEInput(phi, t0, jnp.zeros_like(tau), v, d))
+        # has_reference only picks the kinematic part's source, which K_d does not read
+        kd = te_reading(tau, te, ref, in_window, in_window, has_reference=True)[3]
+        return kd / NM_PER_ARCMIN
 
-    per_draw = jax.vmap(one, in_axes=(None, 0, 0, 0))
-    return jax.vmap(lambda values: per_draw(values, torque_Nm, speed_rad_s, direction))(values_batch)
+    per_draw = jax.vmap(one, in_axes=(None, 0, 0, 0, 0))
+    return jax.vmap(lambda values: per_draw(values, torque_Nm, speed_rad_s, direction, has_ref))(values_batch)
 
 
 def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_pct: float = 3.0) -> DerivedMetrics:
@@ -313,20 +348,33 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
             MetricSpec("compliance_loading_pos", "deg/Nm", "loading compliance of the + side (increasing torque, τ > 0), as stiffness_loading"),
             MetricSpec("compliance_loading_neg", "deg/Nm", "loading compliance of the − side (decreasing torque, τ < 0), as stiffness_loading"),
         ]
-    te_model, te_inputs = None, []
+    te_model, te_inputs, ref_directions = None, [], ()
     if campaign.te_runs:
         te_model = dataclasses.replace(model, run_kinds=("transmission_error",))
-        phi = np.concatenate([[np.pi], np.linspace(0, 2 * np.pi, 721)[:-1]])
+        phi = _TE_GRID[0]
+        ref_directions = tuple(sorted({int(r.direction) for r in campaign.te_runs if r.torque_Nm == 0}))
         for run in campaign.te_runs:
+            if run.torque_Nm == 0:
+                continue  # a no-load run has no stiffness: it is the reference of the others
             cond = {"torque_Nm": run.torque_Nm, "speed_rpm": run.speed_rpm,
                     "direction": "forward" if run.direction > 0 else "backward"}
-            te_inputs.append(m.te_input(phi, run.torque_Nm, run.speed_rpm, run.direction))
-            specs.append(MetricSpec(f"kd_mean[{run.name}]", "Nm/arcmin", "K_d = T / TE(180°), model TE against its unloaded zero", cond))
-            specs.append(MetricSpec(f"kt[{run.name}]", "Nm/arcmin", "K_t = T / revolution-mean TE, model", cond))
+            reference = reference_run_for(campaign, run)
+            against = (f"against the model's no-load TE at the reference run {reference.name!r}'s condition "
+                       f"({reference.speed_rpm:g} rpm, same direction), the kinematic error removed"
+                       if reference is not None else
+                       "against the model's zero (no no-load run in the same direction), the kinematic error included")
+            te_inputs.append((m.te_input(phi, run.torque_Nm, run.speed_rpm, run.direction),
+                              None if reference is None else m.te_input(phi, 0.0, reference.speed_rpm, run.direction)))
+            window = f"model TE − ref averaged within ±{TE_WINDOW_DEG:g}° of 180° output angle"
+            specs.append(MetricSpec(f"kd_mean[{run.name}]", "Nm/arcmin", f"K_d = |T| / |TE(180°) − ref|: {window}, {against}", cond))
+            specs.append(MetricSpec(f"kt[{run.name}]", "Nm/arcmin", f"K_t = |T| / |revolution-mean TE − ref|, model, {against}", cond))
+            specs.append(MetricSpec(f"te_kinematic_180[{run.name}]", "arcmin",
+                                    "kinematic part of the model TE at 180° (window mean minus revolution mean of the "
+                                    + ("reference" if reference is not None else "run's own TE") + "), as the data-only te_kinematic_180", cond))
     steps = SAMPLES_PER_STEP if model.creep is None else SAMPLES_PER_STEP_CREEP
     protocol = _protocol(rated, rate, steps, lost_motion_pct / 100.0)
     return DerivedMetrics(hyst_model, te_model, protocol, te_inputs, bench, tuple(specs), jnp.asarray(float(rated)),
-                          jnp.asarray(lost_motion_pct / 100.0))
+                          jnp.asarray(lost_motion_pct / 100.0), ref_directions)
 
 
 def _data_amplitudes(campaign: Campaign) -> tuple[float, float] | None:
