@@ -3,6 +3,7 @@
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 
 from ._errors import InputError
@@ -356,16 +357,36 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line_warnings(command: str):
+    """``warnings.showwarning`` that prints a PlausibilityWarning as one stderr line
+    (``torsionfit CMD: warning: ...``) and any other warning as Python does."""
+    from .io import PlausibilityWarning
+
+    default = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, PlausibilityWarning):
+            print(f"torsionfit {command}: warning: {message}", file=sys.stderr, flush=True)
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    return show
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     from ._cache import enable_compilation_cache
 
     from ._threads import single_blas_thread
+    from ._x64 import float64
 
     enable_compilation_cache()  # TORSIONFIT_CACHE_DIR chooses the folder, =off switches it off
     try:
-        with single_blas_thread():  # spinning BLAS threads would take the cores from XLA
+        # float64 for this call only (main() is called from Python too); one BLAS thread: spinning
+        # BLAS threads would take the cores from XLA
+        with single_blas_thread(), float64(), warnings.catch_warnings():
+            warnings.showwarning = _one_line_warnings(args.command)
             return args.func(args)
     except InputError as err:
         print(f"torsionfit {args.command}: error: {err}", file=sys.stderr)

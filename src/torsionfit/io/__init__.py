@@ -10,3 +10,4 @@ from ._campaign import (
 )
 from ._decimate import decimate as decimate
 from ._manifest import load_campaign as load_campaign, write_campaign as write_campaign
+from ._plausibility import PlausibilityWarning as PlausibilityWarning

@@ -222,6 +222,7 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str, reducer: Reduce
         units=unit_names,
         select=select,
         temperature_C=_number(entry, "temperature_C", where),
+        encoder_resolution_arcsec=instrument.encoder_resolution_arcsec,
     )
     if kind == "hysteresis":
         return RunSpec(

@@ -8,6 +8,7 @@ a used column is reported with the line it sits on.
 import csv
 import gzip
 import itertools
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,7 +66,7 @@ class Table:
                     shown = repr(str(cell)) if cell.strip() else "an empty cell"
                     raise InputError(
                         f"{self.where}: column {name!r} line {self.lines[i]}: "
-                        f"expected a number, got {shown}"
+                        f"expected a number, got {shown}{_comma_hint(cell)}"
                     ) from None
             raise  # pragma: no cover - astype and float() agree
         bad = np.flatnonzero(~np.isfinite(values))
@@ -86,6 +87,18 @@ class Table:
             self.lines[keep],
             self.duplicated,
         )
+
+
+#: a number written with a decimal comma, e.g. "1,23" or "-0,5e-3"
+_DECIMAL_COMMA = re.compile(r"[+-]?\d+,\d+(?:[eE][+-]?\d+)?")
+
+
+def _comma_hint(text: str) -> str:
+    """A hint for text that holds a decimal comma, else ''."""
+    if not _DECIMAL_COMMA.search(str(text)):
+        return ""
+    return ("; it looks like a decimal comma: write numbers with a decimal point (1.23), "
+            "or export the file with '.' as decimal separator")
 
 
 def _open_text(path: Path):
@@ -129,9 +142,12 @@ def read_table(path: Path, where: str) -> Table:
             row_lines: list[int] = []
             for row in reader:
                 if len(row) != len(header):
+                    # more comma-separated fields than names: decimal commas split the numbers
+                    extra = delimiter == "," and len(row) > len(header)
+                    comma = _comma_hint(",".join(row)) if extra else ""
                     raise InputError(
                         f"{where}: line {line_numbers[-1]} has {len(row)} fields, "
-                        f"the header (line {header_line}) has {len(header)}"
+                        f"the header (line {header_line}) has {len(header)}{comma}"
                     )
                 rows.append(row)
                 row_lines.append(line_numbers[-1])

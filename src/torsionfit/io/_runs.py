@@ -9,6 +9,7 @@ import numpy as np
 from .._errors import InputError
 from ._campaign import HysteresisRun, Reducer, TransmissionErrorRun
 from ._columns import resolve_columns
+from ._plausibility import check_encoder_step, check_hysteresis, check_te_direction
 from ._read import Table, drop_trailing_pad, read_table, select_rows
 
 #: fewest samples a run may have after selection
@@ -40,6 +41,7 @@ class RunSpec:
     te_convention: str = "lag_positive"  # the run's, else [instrument]'s
     zero_group: str | None = None
     sample_rate_Hz: float | None = None  # [instrument]; gives time to runs without a time column
+    encoder_resolution_arcsec: float | None = None  # [instrument]; checks the angle unit
     # both kinds
     temperature_C: float | None = None
 
@@ -100,11 +102,16 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
             f"below {PEAK_FRACTION} × the nominal peak load {peak:.4g} N·m ({origin}); "
             f"check the torque column and its unit, or set peak_torque_Nm for this run"
         )
+    angle = si("angle")
+    # after the errors: a warning is for data that read cleanly
+    check_hysteresis(torque, angle, reducer.rated_torque_Nm, where, found["angle"].name,
+                     found["angle"].unit, found["torque"].name)
+    check_encoder_step(angle, spec.encoder_resolution_arcsec, where, found["angle"].name)
     return HysteresisRun(
         name=spec.name,
         time_s=time,
         torque_Nm=torque,
-        angle_rad=si("angle"),
+        angle_rad=angle,
         loading_rate_Nm_per_s=spec.loading_rate_Nm_per_s,
         temperature_C=si("temperature"),
         source=str(spec.path),
@@ -140,6 +147,7 @@ def _transmission_error(spec, reducer, si, time, found, where, notes) -> Transmi
             f"{where}: column {found['output_angle'].name!r} spans {math.degrees(span):.4g}°; "
             f"a transmission-error run must cover at least one output revolution (360°)"
         )
+    check_te_direction(output, spec.direction, where, found["output_angle"].name)
     if time is None and spec.sample_rate_Hz is not None:
         time = np.arange(len(output)) / spec.sample_rate_Hz
         notes.append(f"time from [instrument] sample_rate_Hz = {spec.sample_rate_Hz:g} (no time column)")

@@ -161,6 +161,12 @@ def _check_arrays(name: str, time_s, torque_Nm, angle_rad) -> tuple[np.ndarray, 
     return tau, theta
 
 
+def _who(run) -> str:
+    """The run and its file for messages: the file is what the user opens to fix it."""
+    kind = "TE run" if run.kind == "transmission_error" else "hysteresis run"
+    return f"{kind} {run.name!r}" + (f" (file {run.source})" if run.source else "")
+
+
 def _check_run(run: HysteresisRun) -> tuple[np.ndarray, np.ndarray]:
     return _check_arrays(run.name, run.time_s, run.torque_Nm, run.angle_rad)
 
@@ -199,7 +205,7 @@ def loop_branches(
     lo_peak, hi_peak = float(smooth.min()), float(smooth.max())
     span = hi_peak - lo_peak
     if span <= 0:
-        raise InputError(f"hysteresis run {run.name!r}: the torque never changes; expected a loop")
+        raise InputError(f"{_who(run)}: the torque never changes; expected a loop")
     threshold = max(reversal_fraction * span, _NOISE_SIGMAS * sigma_smooth)
     segments = _split_monotone(smooth, threshold)
 
@@ -215,7 +221,7 @@ def loop_branches(
     # Both peaks must be clear of zero: a one-sided (pulsating) load is no full loop.
     if not upper_ids or not lower_ids or not lo_peak < -threshold < threshold < hi_peak:
         raise InputError(
-            f"hysteresis run {run.name!r}: no full loop found ({len(lower_ids)} increasing and "
+            f"{_who(run)}: no full loop found ({len(lower_ids)} increasing and "
             f"{len(upper_ids)} decreasing torque ramps spanning {lo_peak:.4g}..{hi_peak:.4g} N·m); "
             f"expected at least one ramp each way between a negative and a positive peak"
         )
@@ -224,7 +230,7 @@ def loop_branches(
     g_lo, g_hi = _shared_range(smooth, segments, branch_ids)
     if not g_lo < 0 < g_hi:
         raise InputError(
-            f"hysteresis run {run.name!r}: the loop branches share only "
+            f"{_who(run)}: the loop branches share only "
             f"{g_lo:.4g}..{g_hi:.4g} N·m; expected a common range through zero torque"
         )
     grid = np.linspace(g_lo, g_hi, n_grid)
@@ -614,9 +620,9 @@ def loading_compliance_from_arrays(
 class _Reader:
     """Evaluates loop curves at a torque, allowing a small extrapolation past the grid ends."""
 
-    def __init__(self, branches: LoopBranches, run_name: str, limit_Nm: float):
+    def __init__(self, branches: LoopBranches, who: str, limit_Nm: float):
         self.grid = branches.torque_Nm
-        self.run_name = run_name
+        self.who = who  # names the run and its file in messages
         self.limit = limit_Nm  # how far past a grid end a torque may lie
         self.extrapolated: set[float] = set()
 
@@ -626,7 +632,7 @@ class _Reader:
             return float(np.interp(torque, grid, curve))
         if torque > grid[-1] + self.limit or torque < grid[0] - self.limit:
             raise InputError(
-                f"hysteresis run {self.run_name!r}: the loop's branches reach only "
+                f"{self.who}: the loop's branches reach only "
                 f"{grid[0]:.4g}..{grid[-1]:.4g} N·m in common; expected the loop to reach "
                 f"{torque:+.4g} N·m"
             )
@@ -690,12 +696,12 @@ def hysteresis_metrics(
     else:
         t_r = float(rated_torque_Nm)
     if not (math.isfinite(t_r) and t_r > 0):
-        raise InputError(f"hysteresis run {run.name!r}: rated torque must be > 0 N·m, got {t_r!r}")
+        raise InputError(f"{_who(run)}: rated torque must be > 0 N·m, got {t_r!r}")
     t1 = 0.25 * t_r if t1_Nm is None else float(t1_Nm)
     t2 = 0.75 * t_r if t2_Nm is None else float(t2_Nm)
     if not 0 < t1 < t2 < t_r:
         raise InputError(
-            f"hysteresis run {run.name!r}: need 0 < t1_Nm < t2_Nm < rated torque, got "
+            f"{_who(run)}: need 0 < t1_Nm < t2_Nm < rated torque, got "
             f"t1={t1:.4g}, t2={t2:.4g}, T_r={t_r:.4g} N·m"
         )
     if not 0 < lost_motion_pct < 100:
@@ -705,11 +711,11 @@ def hysteresis_metrics(
     g_lo, g_hi = float(lb.torque_Nm[0]), float(lb.torque_Nm[-1])
     if g_hi < (1 - RATED_TOLERANCE) * t_r or g_lo > -(1 - RATED_TOLERANCE) * t_r:
         raise InputError(
-            f"hysteresis run {run.name!r}: the loop never reaches the rated torque ±{t_r:.4g} N·m "
+            f"{_who(run)}: the loop never reaches the rated torque ±{t_r:.4g} N·m "
             f"(its branches share only {g_lo:.4g}..{g_hi:.4g} N·m; peaks {lb.trough_Nm:.4g} and "
             f"{lb.peak_Nm:.4g} N·m); expected full loops to ±T_r, or give the nominal peak load"
         )
-    at = _Reader(lb, run.name, RATED_TOLERANCE * t_r)
+    at = _Reader(lb, _who(run), RATED_TOLERANCE * t_r)
     upper, lower, mid, grid = lb.upper_rad, lb.lower_rad, lb.midline_rad, lb.torque_Nm
 
     # Reference: the loop midpoint at zero torque (paper inconsistency 4: say which one).
@@ -718,7 +724,7 @@ def hysteresis_metrics(
     rise_neg = theta_ref - at(upper, -t_r)  # step 3 ends at −T_r on the decreasing branch
     if rise_pos <= 0 or rise_neg <= 0:
         raise InputError(
-            f"hysteresis run {run.name!r}: the angle does not grow with torque; expected "
+            f"{_who(run)}: the angle does not grow with torque; expected "
             f"positive torque to twist the output forward (check the angle sign)"
         )
     k_pos, k_neg = t_r / rise_pos, t_r / rise_neg
@@ -751,7 +757,7 @@ def hysteresis_metrics(
         sel = side & (np.abs(grid) <= t_r)
         if np.count_nonzero(sel) < 3:
             raise InputError(
-                f"hysteresis run {run.name!r}: too few grid points between T1 = {t1:.4g} N·m "
+                f"{_who(run)}: too few grid points between T1 = {t1:.4g} N·m "
                 f"and T_r on one side for the elastic slope"
             )
         dt, dth = grid[sel] - grid[sel].mean(), mid[sel] - mid[sel].mean()
@@ -760,7 +766,7 @@ def hysteresis_metrics(
     compliance = num / den
     if compliance <= 0:
         raise InputError(
-            f"hysteresis run {run.name!r}: the loop midline does not rise with torque above T1"
+            f"{_who(run)}: the loop midline does not rise with torque above T1"
         )
 
     def secant(a: float, b: float) -> float:
@@ -768,7 +774,7 @@ def hysteresis_metrics(
         dtheta = 0.5 * ((at(mid, b) - at(mid, a)) + (at(mid, -a) - at(mid, -b)))
         if dtheta <= 0:
             raise InputError(
-                f"hysteresis run {run.name!r}: the loop midline does not rise between "
+                f"{_who(run)}: the loop midline does not rise between "
                 f"{a:.4g} and {b:.4g} N·m"
             )
         return (b - a) / dtheta

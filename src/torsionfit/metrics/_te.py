@@ -25,7 +25,7 @@ import numpy as np
 from .._errors import InputError
 from ..io._campaign import TransmissionErrorRun
 from ..units import from_si
-from ._hysteresis import _entry
+from ._hysteresis import _entry, _who
 
 TWO_PI = 2.0 * math.pi
 #: width of the output-angle bins of a once-per-revolution TE profile (degrees)
@@ -65,12 +65,12 @@ def _angles(run: TransmissionErrorRun) -> tuple[np.ndarray, np.ndarray]:
     te = np.asarray(run.te_rad, dtype=float)
     if not (phi.ndim == te.ndim == 1 and phi.size == te.size):
         raise InputError(
-            f"TE run {run.name!r}: output angle and TE must be 1-D arrays of one length"
+            f"{_who(run)}: output angle and TE must be 1-D arrays of one length"
         )
     if phi.size < 8:
-        raise InputError(f"TE run {run.name!r}: {phi.size} samples; expected a revolution of data")
+        raise InputError(f"{_who(run)}: {phi.size} samples; expected a revolution of data")
     if not (np.all(np.isfinite(phi)) and np.all(np.isfinite(te))):
-        raise InputError(f"TE run {run.name!r}: non-finite output angle or TE values")
+        raise InputError(f"{_who(run)}: non-finite output angle or TE values")
     # An angle logged modulo 360° jumps by a full turn; unwrapping is a no-op otherwise.
     return np.unwrap(phi), te
 
@@ -84,7 +84,7 @@ def _progress(run: TransmissionErrorRun, phi: np.ndarray) -> tuple[np.ndarray, i
     revolutions = int(math.floor((progress[-1] + step) / TWO_PI + 1e-9))
     if revolutions < 1:
         raise InputError(
-            f"TE run {run.name!r}: covers {math.degrees(progress[-1]):.4g}° of output angle; "
+            f"{_who(run)}: covers {math.degrees(progress[-1]):.4g}° of output angle; "
             f"expected at least one full revolution (360°)"
         )
     return progress, revolutions, step
@@ -192,7 +192,7 @@ def te_metrics(
     window = in_te_window(wrapped, te_window_deg)
     if not np.any(window):
         raise InputError(
-            f"TE run {run.name!r}: no sample within ±{te_window_deg:g}° of 180° output angle; "
+            f"{_who(run)}: no sample within ±{te_window_deg:g}° of 180° output angle; "
             f"expected denser sampling or a wider te_window_deg"
         )
     weight = _revolution_weights(progress, revolutions, step)
@@ -240,7 +240,7 @@ def te_metrics(
     for name, level, k, what in (("kd", te_180, kd, "TE(180°)"), ("kt", te_mean, kt, "revolution-mean TE")):
         if level == 0:
             raise InputError(
-                f"TE run {run.name!r}: {what} equals the reference; {name} is undefined"
+                f"{_who(run)}: {what} equals the reference; {name} is undefined"
             )
         note = f"|T| / |{what} − ref| {condition}; {ref_note}"
         out[name] = _entry(from_si(k, "stiffness", "Nm/arcmin"), "Nm/arcmin", note)

@@ -1,0 +1,151 @@
+"""Plausibility of a run's numbers for the reducer it claims to be.
+
+A unit slip leaves a file perfectly readable: arcmin under an ``angle_deg`` header makes every
+stiffness 60× too small, arcsec under it 3600×, with no error anywhere. These checks compare
+what the data imply with what reducers are, and warn in one line (they never stop a run: an
+unusual unit is possible, a silent 60× is not acceptable). Thresholds and their reasons:
+
+- **Twist at rated torque** (secant, half the lost motion included), ``T_r / K``: precision
+  cycloidal (RV) reducers twist 2–4 arcmin at rated torque, strain-wave (harmonic) 4–10,
+  precision planetary 3–15, budget planetary up to ~40; plastic, 3D-printed and hobby gearing
+  — which exists only at small ratings — 1–3°. Plausible: from ``TWIST_MIN_ARCMIN`` up to
+  ``TWIST_MAX_ARCMIN``, lowered above ``SOFT_LIMIT_NM`` as √(SOFT_LIMIT_NM / T_r) (a 380 N·m
+  unit may twist 1.5° at most, a 20 N·m one 10°). The band spans 2000×, less than 3600×: a
+  3600× slip of any plausible value always lands outside it; a 60× slip does above ~100 N·m
+  and for the stiffer units below.
+- **Encoder step**: angles that move in steps of a fixed size are quantised by the encoder; a
+  step 20× coarser or finer than the declared ``encoder_resolution_arcsec`` is a unit slip
+  (60×, 3600×, 57.3× for rad/deg) or a wrong resolution.
+- **Peak torque** above ``PEAK_TORQUE_LIMIT`` × the rated torque: no bench loads a reducer
+  that far past its momentary rating (~2–5×); N·mm under a ``torque_Nm`` header gives 1000×.
+- **TE direction**: a forward run's output angle increases sample by sample, a backward one's
+  decreases (wrap-arounds ignored).
+"""
+
+import math
+import warnings
+
+import numpy as np
+
+from .. import units
+
+ARCMIN = units.ANGLE_UNITS["arcmin"]
+ARCSEC = units.ANGLE_UNITS["arcsec"]
+#: stiffest plausible twist at rated torque (arcmin): stiffer than any catalog reducer by ~5×
+TWIST_MIN_ARCMIN = 0.3
+#: softest plausible twist at rated torque (arcmin) at and below SOFT_LIMIT_NM: 10°, 3× the
+#: softest measured 3D-printed unit in the bundled examples
+TWIST_MAX_ARCMIN = 600.0
+#: rated torque (N·m) above which the softest plausible twist falls as √(SOFT_LIMIT_NM / T_r)
+SOFT_LIMIT_NM = 20.0
+#: an observed encoder step this many times off the declared resolution is warned about
+STEP_RATIO_LIMIT = 20.0
+#: a peak load this many times the rated torque is warned about
+PEAK_TORQUE_LIMIT = 10.0
+#: fraction of the extreme torque samples a loop's end points are read from
+_END_FRACTION = 0.9
+
+
+class PlausibilityWarning(UserWarning):
+    """The data read cleanly but are implausible for the reducer (a unit slip, a sign, a
+    direction). The message is one line naming the file and the column or key."""
+
+
+def warn(message: str) -> None:
+    """Issue a :class:`PlausibilityWarning` (whitespace collapsed to one line)."""
+    warnings.warn(" ".join(message.split()), PlausibilityWarning, stacklevel=3)
+
+
+def twist_band_arcmin(rated_torque_Nm: float) -> tuple[float, float]:
+    """(lowest, highest) plausible twist at rated torque in arcmin for a reducer of that rating."""
+    high = TWIST_MAX_ARCMIN * math.sqrt(min(1.0, SOFT_LIMIT_NM / rated_torque_Nm))
+    return TWIST_MIN_ARCMIN, high
+
+
+def secant_compliance(torque_Nm: np.ndarray, angle_rad: np.ndarray) -> float | None:
+    """dθ/dτ (rad/N·m) between the loop's two ends: the median angle of the samples beyond
+    90 % of the extreme torques on each side over the mean torque there. None without a load
+    both ways (a one-sided run has no secant through zero)."""
+    tau, theta = np.asarray(torque_Nm, float), np.asarray(angle_rad, float)
+    lo, hi = np.percentile(tau, [0.5, 99.5])
+    if not lo < 0 < hi:
+        return None
+    top, bottom = tau >= _END_FRACTION * hi, tau <= _END_FRACTION * lo
+    d_tau = float(np.mean(tau[top]) - np.mean(tau[bottom]))
+    return float(np.median(theta[top]) - np.median(theta[bottom])) / d_tau
+
+
+def check_hysteresis(torque_Nm, angle_rad, rated_torque_Nm, where: str, angle_column: str,
+                     angle_unit: str, torque_column: str) -> None:
+    """Warn when the loop's twist at rated torque (or at its own peak, without a rating) or its
+    peak load is implausible for the rating."""
+    reached = float(np.max(np.abs(torque_Nm)))
+    if rated_torque_Nm is not None and reached > PEAK_TORQUE_LIMIT * rated_torque_Nm:
+        warn(f"{where}: column {torque_column!r} reaches |torque| = {reached:.4g} N·m, "
+             f"{reached / rated_torque_Nm:.3g}× the rated torque {rated_torque_Nm:.4g} N·m "
+             f"(a bench stays below ~5×); is the torque unit right (N·mm read as N·m is 1000×)?")
+    c = secant_compliance(torque_Nm, angle_rad)
+    if c is None or c <= 0:
+        return  # a reversed sign is the metrics' error ("the angle does not grow with torque")
+    scale = rated_torque_Nm if rated_torque_Nm is not None else reached
+    if rated_torque_Nm is not None:
+        at, who = f"the rated torque {scale:.4g} N·m", "a reducer of that rating"
+    else:  # no rating: the load the bench applied stands in for it
+        at, who = f"its peak {scale:.4g} N·m (no rated_torque_Nm)", "a reducer loaded that far"
+    twist = c * scale / ARCMIN
+    low, high = twist_band_arcmin(scale)
+    if low <= twist <= high:
+        return
+    declared = units.ANGLE_UNITS[angle_unit]
+    fits = [f"{twist * f / declared:.3g} arcmin if the column held {u}"
+            for u, f in units.ANGLE_UNITS.items()
+            if u != angle_unit and low <= twist * f / declared <= high]
+    hint = f" ({'; '.join(fits)})" if fits else ""
+    warn(f"{where}: column {angle_column!r} ({angle_unit}) twists {twist:.3g} arcmin at {at} "
+         f"(secant stiffness {1.0 / (c / ARCMIN):.3g} N·m/arcmin); {who} "
+         f"twists {low:g}–{high:.3g} arcmin — is the angle unit right?{hint}")
+
+
+def quantisation_step(values: np.ndarray) -> float | None:
+    """The step a quantised signal moves in (its smallest non-zero change), None when the
+    changes are not whole multiples of one step (unquantised, filtered or averaged data)."""
+    d = np.abs(np.diff(np.asarray(values, float)))
+    scale = float(np.max(d)) if d.size else 0.0
+    d = d[d > 1e-9 * scale]
+    if d.size < 20:
+        return None
+    q = float(np.min(d))
+    k = d / q
+    on_grid = np.abs(k - np.round(k)) < 0.02
+    # most changes a few steps: a quantised slow signal; on_grid alone passes noise by chance
+    if np.mean(on_grid) < 0.9 or np.median(k) > 1000:
+        return None
+    return q
+
+
+def check_encoder_step(angle_rad, resolution_arcsec: float | None, where: str, column: str) -> None:
+    """Warn when the angle moves in steps far from the declared encoder resolution."""
+    if resolution_arcsec is None:
+        return
+    q = quantisation_step(angle_rad)
+    if q is None:
+        return
+    ratio = q / ARCSEC / resolution_arcsec
+    if 1.0 / STEP_RATIO_LIMIT <= ratio <= STEP_RATIO_LIMIT:
+        return
+    warn(f"{where}: column {column!r} moves in steps of {q / ARCSEC:.4g} arcsec, {ratio:.4g}× "
+         f"the [instrument] encoder_resolution_arcsec = {resolution_arcsec:g}; is the column's "
+         f"angle unit (or the resolution) right?")
+
+
+def check_te_direction(output_angle_rad, direction: int, where: str, column: str) -> None:
+    """Warn when the output angle runs against the declared ``direction`` (+1 forward)."""
+    d = np.diff(np.asarray(output_angle_rad, float))
+    d = d[(d != 0) & (np.abs(d) < math.pi)]  # a wrap from 360° to 0° is no step back
+    if d.size == 0:
+        return
+    against = float(np.mean(np.sign(d) != np.sign(direction)))
+    if against > 0.5:
+        declared, moving = ("forward", "decreases") if direction > 0 else ("backward", "increases")
+        warn(f"{where}: column {column!r} {moving} over the run ({against:.0%} of its steps) but "
+             f"direction = {declared!r}; check the direction key or the sign of the angle column")

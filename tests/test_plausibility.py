@@ -1,0 +1,237 @@
+"""Plausibility warnings (a unit slip of 60× or 3600×, a TE run against its declared direction,
+a torque far past the rating), the decimal-comma hint, and errors that name their file."""
+
+import math
+import shutil
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from torsionfit import InputError
+from torsionfit.cli import main
+from torsionfit.io import PlausibilityWarning, load_campaign
+from torsionfit.io._plausibility import (
+    TWIST_MIN_ARCMIN,
+    check_te_direction,
+    quantisation_step,
+    twist_band_arcmin,
+)
+from torsionfit.io._read import read_table
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "data"
+EXAMPLES = ROOT / "examples" / "cycloidal-jv"
+SHARED = ROOT.parent / "shared" / "data" / "cycloidal-jv"
+ARCMIN = math.pi / (180 * 60)
+
+
+def plausibility_warnings(path) -> list[str]:
+    """Messages of the PlausibilityWarnings that loading ``path`` gives (each one line)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        load_campaign(path)
+    out = [str(w.message) for w in caught if issubclass(w.category, PlausibilityWarning)]
+    assert all("\n" not in m for m in out)
+    return out
+
+
+def relabelled(tmp_path, name: str, old: str, new: str, values=None) -> Path:
+    """The bundled campaign ``name`` copied with column ``old`` renamed to ``new`` in its
+    hysteresis files, the values optionally mapped by ``values`` (text → text of a cell)."""
+    folder = tmp_path / name
+    shutil.copytree(DATA / name, folder)
+    for path in folder.glob("hysteresis*.csv"):
+        lines = path.read_text().splitlines()
+        head = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+        columns = lines[head].split(",")
+        k = columns.index(old)
+        columns[k] = new
+        rows = [line.split(",") for line in lines[head + 1:]]
+        if values is not None:
+            for row in rows:
+                row[k] = values(row[k])
+        path.write_text("\n".join(lines[:head] + [",".join(columns)] + [",".join(r) for r in rows]) + "\n")
+    return folder / "campaign.toml"
+
+
+# ----------------------------------------------------------------------------- no false alarms
+
+
+@pytest.mark.parametrize("name", ["paper-large", "paper-small"])
+def test_bundled_synthetic_campaigns_raise_no_warning(name):
+    assert plausibility_warnings(DATA / name / "campaign.toml") == []
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="measured data ../shared/data/cycloidal-jv is absent")
+@pytest.mark.parametrize("manifest", sorted(p.name for p in EXAMPLES.glob("*.toml")))
+def test_measured_cycloidal_loops_raise_no_warning(manifest):
+    """REAL measured 3D-printed cycloidal loops (twist ~100–170 arcmin at 20 N·m, play up to
+    2.6°): the softest real units the checks must accept."""
+    assert plausibility_warnings(EXAMPLES / manifest) == []
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="measured data ../shared/data/cycloidal-jv is absent")
+def test_measured_loop_without_a_rating_raises_no_warning(write_files):
+    """Without rated_torque_Nm the twist is judged at the loop's own peak (±40 N·m here)."""
+    text = (EXAMPLES / "split-pccf-initial-pos1.toml").read_text()
+    text = text.replace("rated_torque_Nm = 20.0", "").replace(
+        "../../../shared/data/cycloidal-jv", SHARED.as_posix())
+    path = write_files({"campaign.toml": text + "[runs.select]\ntest_nr = [100, 101, 102]\n"})
+    assert plausibility_warnings(path) == []
+
+
+# ----------------------------------------------------------------------------- unit slips
+
+
+def test_arcmin_under_a_deg_header_is_caught_60x(tmp_path):
+    """paper-large (380 N·m, ~4.4 arcmin at rated): its arcmin column read as degrees twists
+    ~260 arcmin, above the 138 arcmin a 380 N·m reducer can; the encoder step is 60× too."""
+    path = relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_deg")
+    found = plausibility_warnings(path)
+    twist = [m for m in found if "twists" in m]
+    steps = [m for m in found if "moves in steps" in m]
+    assert len(twist) == len(steps) == 3  # one of each per hysteresis run
+    assert "hysteresis-1Nm_per_s.csv" in twist[0] and "column 'angle_deg'" in twist[0]
+    assert "if the column held arcmin" in twist[0] and "rated torque 380 N·m" in twist[0]
+    assert "60× the [instrument] encoder_resolution_arcsec = 1" in steps[0]
+
+
+def test_deg_under_an_arcmin_header_is_caught_60x(tmp_path):
+    """The other way: the angles 60× too small make a twist of ~0.07 arcmin at 380 N·m."""
+    path = relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_arcmin",
+                      values=lambda cell: repr(float(cell) / 60.0))
+    twist = [m for m in plausibility_warnings(path) if "twists" in m]
+    assert len(twist) == 3
+    assert f"{TWIST_MIN_ARCMIN:g}–138 arcmin" in twist[0]
+
+
+def test_arcsec_under_a_deg_header_is_caught_3600x(tmp_path):
+    """paper-small (1 N·m, a soft ~125 arcmin at rated) values ×60 under angle_deg: 3600×."""
+    path = relabelled(tmp_path, "paper-small", "angle_arcmin", "angle_deg",
+                      values=lambda cell: repr(float(cell) * 60.0))  # the arcsec number
+    twist = [m for m in plausibility_warnings(path) if "twists" in m]
+    assert len(twist) == 3 and "if the column held arcsec" in twist[0]
+
+
+@pytest.mark.parametrize("rated", [0.5, 1.0, 20.0, 100.0, 380.0, 3000.0])
+def test_a_3600x_slip_of_any_plausible_twist_leaves_the_band(rated):
+    """The band spans less than 3600×, so no plausible twist stays plausible after a 3600× slip."""
+    low, high = twist_band_arcmin(rated)
+    assert high / low < 3600
+    for twist in np.geomspace(low, high, 50):
+        assert not low <= 3600 * twist <= high and not low <= twist / 3600 <= high
+
+
+def test_catalog_reducers_are_inside_the_band():
+    """Catalog twists at rated torque (secant, half the lost motion included): RV-20E
+    167 N·m / 49 N·m/arcmin + 0.5′, CSF-25 harmonic ~7′ at 67 N·m, a precision planetary
+    ~10′ at 100 N·m, a budget planetary ~40′ at 380 N·m, a hobby planetary ~60′ at 3 N·m."""
+    for rated, twist in ((167, 167 / 49 + 0.5), (67, 7.0), (100, 10.0), (380, 40.0), (3, 60.0)):
+        low, high = twist_band_arcmin(rated)
+        assert low <= twist <= high, (rated, twist)
+
+
+def test_torque_in_Nmm_under_a_Nm_header_is_caught(tmp_path):
+    path = relabelled(tmp_path, "paper-large", "torque_Nm", "torque_Nm",
+                      values=lambda cell: repr(float(cell) * 1000.0))
+    peak = [m for m in plausibility_warnings(path) if "reaches |torque|" in m]
+    assert len(peak) == 3 and "column 'torque_Nm'" in peak[0] and "N·mm" in peak[0]
+
+
+def test_quantisation_step_is_found_only_on_quantised_data():
+    rng = np.random.default_rng(0)
+    smooth = np.cumsum(rng.normal(0.0, 1.0, 2000))
+    assert quantisation_step(smooth) is None  # unquantised
+    q = 2.5e-5
+    assert quantisation_step(np.round(smooth / 7.0) * q) == pytest.approx(q)
+    assert quantisation_step(np.round(smooth / 7.0) * q + rng.normal(0, q / 10, 2000)) is None
+
+
+# ----------------------------------------------------------------------------- TE direction
+
+
+def test_te_direction_against_the_declared_one_is_caught():
+    rising = np.radians(np.linspace(0.0, 720.0, 721))
+    with pytest.warns(PlausibilityWarning, match=r"f\.csv: column 'phi' decreases .* direction = 'forward'"):
+        check_te_direction(rising[::-1], +1, "f.csv", "phi")
+    with pytest.warns(PlausibilityWarning, match=r"increases .* direction = 'backward'"):
+        check_te_direction(rising, -1, "f.csv", "phi")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_te_direction(rising, +1, "f.csv", "phi")
+        check_te_direction(np.mod(rising, 2 * math.pi), +1, "f.csv", "phi")  # wrapped at 360°
+        check_te_direction(np.mod(rising, 2 * math.pi)[::-1], -1, "f.csv", "phi")
+
+
+def test_te_direction_of_a_campaign_file(tmp_path):
+    folder = tmp_path / "te"
+    shutil.copytree(DATA / "paper-large", folder)
+    manifest = folder / "campaign.toml"
+    text = manifest.read_text()
+    manifest.write_text(text.replace('file = "te-5rpm-380Nm-fw.csv"\nspeed_rpm = 5.0\ntorque_Nm = 380.0\n'
+                                     'direction = "forward"', 'file = "te-5rpm-380Nm-fw.csv"\nspeed_rpm = 5.0\n'
+                                     'torque_Nm = 380.0\ndirection = "backward"'))
+    found = plausibility_warnings(manifest)
+    assert len(found) == 1
+    assert "te-5rpm-380Nm-fw.csv: column 'output_angle_deg' increases" in found[0]
+
+
+# ----------------------------------------------------------------------------- CLI
+
+
+def test_cli_prints_each_warning_on_one_line(tmp_path, capsys):
+    path = relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_deg")
+    assert main(["metrics", str(path), "--json"]) == 0
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.startswith("torsionfit metrics: warning: ")]
+    assert len(lines) == 6 and all("angle_deg" in line for line in lines)
+    assert "PlausibilityWarning" not in err and "warnings.warn" not in err
+
+
+# ----------------------------------------------------------------------------- decimal comma
+
+
+def test_decimal_comma_in_a_cell_gets_a_hint(tmp_path):
+    path = tmp_path / "bench.csv"
+    path.write_text("time_s;torque_Nm;angle_arcmin\n0;1.5;0.1\n0.1;1,25;0.2\n")
+    table = read_table(path, f"{path}")
+    with pytest.raises(InputError, match=r"bench\.csv: column 'torque_Nm' line 3: expected a number, "
+                                         r"got '1,25'; it looks like a decimal comma"):
+        table.numbers("torque_Nm")
+
+
+def test_decimal_comma_in_a_comma_separated_file_gets_a_hint(tmp_path):
+    path = tmp_path / "bench.csv"
+    path.write_text("time_s,torque_Nm,angle_arcmin\n0,1,5,0,1\n")
+    with pytest.raises(InputError, match=r"bench\.csv: line 2 has 5 fields.*has 3; it looks like a decimal comma"):
+        read_table(path, f"{path}")
+    path.write_text("a,b,c\n1,2\n")  # too few fields: no decimal comma to blame
+    with pytest.raises(InputError) as info:
+        read_table(path, f"{path}")
+    assert "decimal comma" not in str(info.value)
+
+
+# ----------------------------------------------------------------------------- errors name the file
+
+
+def test_metric_errors_name_the_run_file(write_files, capsys):
+    """'no full loop' and 'the angle does not grow with torque' name the file to open."""
+    from torsionfit.metrics import hysteresis_metrics
+
+    t = np.linspace(0.0, 40.0, 801)
+    tau = 100.0 * np.sin(2 * np.pi * t / 20.0)
+    rows = "\n".join(f"{a:.9g},{b:.9g},{c:.9g}" for a, b, c in zip(t, tau, -tau / 20.0))
+    path = write_files({"campaign.toml": '[reducer]\nname = "u"\nrated_torque_Nm = 100.0\n'
+                                         '[[runs]]\nname = "h"\nkind = "hysteresis"\nfile = "h.csv"\n',
+                        "h.csv": "# SYNTHETIC\ntime_s,torque_Nm,angle_arcmin\n" + rows + "\n"})
+    (run,) = load_campaign(path).runs
+    with pytest.raises(InputError, match=r"hysteresis run 'h' \(file .*h\.csv\): the angle does not grow"):
+        hysteresis_metrics(run, 100.0)
+    one_sided = type(run)(name="h", time_s=t, torque_Nm=np.abs(tau), angle_rad=np.abs(tau) * ARCMIN,
+                          source=run.source)
+    with pytest.raises(InputError, match=r"hysteresis run 'h' \(file .*h\.csv\): no full loop found"):
+        hysteresis_metrics(one_sided, 100.0)
+    assert main(["metrics", str(path)]) == 0  # the play can be read; the rest are notes
+    assert "(file " in capsys.readouterr().out
