@@ -314,7 +314,23 @@ def fit_json(fit: CampaignFit) -> dict:
         "parameters": physics,
         "diagnostics": fit.diagnostics,
         "rmse": {name: {"value": v, "unit": "arcsec"} for name, v in fit.rmse_arcsec.items()},
+        **_runs_json(fit.campaign),
     }
+
+
+def _runs_json(campaign) -> dict:
+    """The fitted runs' conditions: kind, nominal temperature (°C, the manifest's
+    ``temperature_C``; None when not given) and, for TE runs, load, speed, direction and zero
+    group; and the distinct temperatures the fit spans (no term makes stiffness depend on them)."""
+    runs = {}
+    for run in campaign.runs:
+        entry = {"kind": run.kind, "temperature_C": run.nominal_temperature_C}
+        if run.kind == "transmission_error":
+            entry |= {"torque_Nm": run.torque_Nm, "speed_rpm": run.speed_rpm,
+                      "direction": "forward" if run.direction > 0 else "backward", "zero_group": run.zero_group}
+        runs[run.name] = entry
+    temperatures = sorted({r.nominal_temperature_C for r in campaign.runs if r.nominal_temperature_C is not None})
+    return {"runs": runs, "temperatures_C": temperatures}
 
 
 def summary_table(doc: dict) -> str:
