@@ -68,6 +68,9 @@ import jax  # noqa: E402
 import jax.monitoring  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
+# this script calls torsionfit's internals directly: its process in float64, as torsionfit's fits
+jax.config.update("jax_enable_x64", True)
+
 import _scipy_pipeline as sp  # noqa: E402
 from _machine import machine  # noqa: E402
 import torsionfit.sample._emcee as tf_emcee  # noqa: E402

@@ -32,8 +32,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-import torsionfit  # noqa: F401  (switches on float64, as every fit does)
 import torsionfit.model as m
+
+# this script calls model components directly: its process in float64, as torsionfit's fits
+jax.config.update("jax_enable_x64", True)
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))

@@ -27,6 +27,14 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 # The first process of the run (pytest-xdist's controller, or the only one) names the folder;
 # the workers and every subprocess inherit the name from the environment.
 from torsionfit._cache import MIN_COMPILE_TIME_S, enable_compilation_cache  # noqa: E402 (after the flags)
+import jax  # noqa: E402
+
+# torsionfit leaves JAX's precision alone (its entry points compute in float64 under a scoped,
+# thread-local switch). Many tests call building blocks directly (model components, FitProblem
+# methods) and compare with float64 tolerances, so this test process computes in float64
+# throughout; tests/test_library_hygiene.py checks the library in fresh interpreters without it,
+# and the command-line subprocesses of the tests run without it as well.
+jax.config.update("jax_enable_x64", True)
 
 _RUN_CACHE = "TORSIONFIT_TEST_RUN_CACHE"
 _NAMED_HERE = _RUN_CACHE not in os.environ

@@ -1,11 +1,13 @@
-"""torsionfit: torsional stiffness of gear reducers from test-bench data, with uncertainty."""
+"""torsionfit: torsional stiffness of gear reducers from test-bench data, with uncertainty.
 
-import jax as _jax
+Importing torsionfit changes no JAX setting: its entry points compute in float64 under JAX's
+scoped, thread-local switch (``torsionfit.float64``), and the user's session keeps its own
+``jax_enable_x64``. To call building blocks (model components, ``FitProblem`` methods) directly
+in float64, use ``with torsionfit.float64(): ...``.
+"""
 
-# Fitting needs double precision (angles of arcseconds on top of offsets of degrees).
-_jax.config.update("jax_enable_x64", True)
-
-from . import io as io, units as units  # noqa: E402
-from ._errors import InputError as InputError  # noqa: E402
+from . import io as io, units as units
+from ._errors import InputError as InputError
+from ._x64 import float64 as float64
 
 __version__ = "0.1.0"

@@ -7,6 +7,7 @@ matplotlib.use("Agg")  # files only: no screen on benches and CI
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ._x64 import in_float64
 from .units import from_si  # noqa: E402
 
 COMPONENT_STYLE = {
@@ -61,6 +62,7 @@ _MAX_POINTS = 3000  # points per curve in a figure
 _BAND_DRAWS = 200  # posterior draws behind a band
 
 
+@in_float64
 def components_over_draws(problem, u_batch, idx_by_run: dict) -> dict:
     """Components of several runs for each draw, in one compiled pass: ``idx_by_run`` maps a
     run index to the sample indices wanted; returns run index → dict of (draws, n) arrays
@@ -96,6 +98,7 @@ def _components_at(problem, u_batch, runs: tuple, idx: tuple):
     return over_draws(problem, u_batch, idx)
 
 
+@in_float64
 def component_draws(problem, u_batch, run_index: int, idx):
     """Components of one run at sample indices ``idx`` for each draw (dict of (draws, n))."""
     return components_over_draws(problem, u_batch, {run_index: idx})[run_index]
@@ -108,6 +111,7 @@ def band(ax, x, draws, color, label=None, alpha=0.25, lw=0.8, ls="-"):
     ax.plot(x, mid, ls, color=color, lw=lw, label=label)
 
 
+@in_float64
 def write_fit_figures(fit, folder) -> list:
     """Every figure of a fit (``report.CampaignFit``) into ``folder``; returns the paths."""
     from pathlib import Path

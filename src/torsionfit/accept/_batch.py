@@ -6,6 +6,7 @@ import csv
 import json
 from pathlib import Path
 
+from .._x64 import in_float64
 from .._errors import InputError, error_line
 from ..io import load_campaign
 from ..io._manifest import MANIFEST_NAME
@@ -37,6 +38,7 @@ def _unit_row(manifest: Path, folder: Path, spec, options, seed, out_dir, figure
     return row
 
 
+@in_float64
 def accept_folder(folder, spec, out_dir, options: FitOptions = FitOptions(), seed: int = 0,
                   progress=None, figures: bool = True) -> list[dict]:
     """Decide every campaign under ``folder``; each unit's ``accept.json`` goes to

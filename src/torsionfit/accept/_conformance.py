@@ -6,9 +6,11 @@ one), so "is the truth in spec" is judged by exactly the rule the decision uses.
 
 import numpy as np
 
+from .._x64 import in_float64
 from ._envelope import region_kd_min
 
 
+@in_float64
 def requirement_quantities(bound, derived, values: dict, metric_draws=None) -> np.ndarray:
     """(draws, requirements): each requirement's quantity in its metric's unit — the metric, or
     for ``kd`` the smallest K_d over the region. ``bound``: ``BoundRequirement``s; ``derived``:

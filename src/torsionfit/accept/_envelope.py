@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._x64 import in_float64
+
 #: points per axis of the grid a ``kd`` requirement is checked on (corners included)
 REGION_TORQUE_POINTS = 9
 REGION_SPEED_POINTS = 5
@@ -21,6 +23,7 @@ ENVELOPE_SPEED_POINTS = 31
 ENVELOPE_MIN_TORQUE_FRACTION = 0.1
 
 
+@in_float64
 def kd_worst_direction(derived, values: dict, torque_Nm, speed_rpm) -> np.ndarray:
     """min(K_d forward, K_d backward) (N·m/arcmin), (draws, conditions), at the paired 1-D
     ``torque_Nm`` and ``speed_rpm``; ``values`` are stacked SI parameter draws."""
@@ -39,6 +42,7 @@ def _mesh(torque_Nm, speed_rpm):
     return t.ravel(), v.ravel()
 
 
+@in_float64
 def region_kd_min(derived, values: dict, torque_range_Nm, speed_range_rpm) -> np.ndarray:
     """Per draw, the smallest K_d (N·m/arcmin) over the operating region: a grid of
     :data:`REGION_TORQUE_POINTS` × :data:`REGION_SPEED_POINTS` conditions, corners included,
@@ -72,6 +76,7 @@ def envelope_axes(rated_torque_Nm: float, max_speed_rpm: float, torque_range_Nm,
     return np.linspace(t_lo, t_hi, ENVELOPE_TORQUE_POINTS), np.linspace(0.0, v_hi, ENVELOPE_SPEED_POINTS)
 
 
+@in_float64
 def operating_envelope(derived, values: dict, bound, p_accept: float, torque_Nm, speed_rpm) -> Envelope:
     """The envelope of the ``kd`` requirement ``bound`` (a ``BoundRequirement``) over the grid
     ``torque_Nm`` × ``speed_rpm`` from stacked SI parameter draws ``values``."""

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._x64 import in_float64
 from ..fit import check_fittable
 from ..report import FitOptions, campaign_model, derived_metrics_for, fit_campaign, summarise
 from ._conformance import conformance, requirement_quantities
@@ -28,6 +29,7 @@ class UnitAcceptance:
     seed: int
 
 
+@in_float64
 def bind_to_campaign(spec: Spec, campaign, options: FitOptions = FitOptions()):
     """(``BoundRequirement``s, ``DerivedMetrics``) of ``spec`` for ``campaign`` fitted with
     ``options`` — checked before any fit, so a wrong metric or unit fails at once."""
@@ -36,6 +38,7 @@ def bind_to_campaign(spec: Spec, campaign, options: FitOptions = FitOptions()):
     return bind_requirements(spec, derived.specs, bool(campaign.te_runs)), derived
 
 
+@in_float64
 def accept_campaign(campaign, spec: Spec, options: FitOptions = FitOptions(), seed: int = 0,
                     envelope: bool = True, fit=None) -> UnitAcceptance:
     """Fit ``campaign`` (``options``, ``seed``) and decide against ``spec``; with ``envelope``,

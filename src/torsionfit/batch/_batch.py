@@ -6,6 +6,7 @@ from concurrent.futures.process import BrokenProcessPool
 from functools import partial
 from pathlib import Path
 
+from .._x64 import in_float64
 from .._errors import InputError
 from ..accept import EXIT_CODE, batch_exit_code, find_campaigns, write_batch_table
 from ..io._manifest import MANIFEST_NAME
@@ -61,6 +62,7 @@ def packets(tasks: list[UnitTask], options: BatchOptions, workers: int = 1) -> l
     return out
 
 
+@in_float64
 def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler: str | None = None,
               force: bool = False, progress=None, workers: int = 1) -> list[dict]:
     """Analyse every unit under ``folder`` into ``out_dir``; returns one row per unit (sorted by

@@ -3,6 +3,7 @@ worker): set up every unit's problem; for the units of each shape, MAP + Laplace
 the emcee units' posteriors together; then each unit's metrics, decision and files. A unit
 that fails gets an error row; the others go on."""
 
+from .._x64 import in_float64
 from ..fit import fit_map
 from ..report import sampler_kwargs
 from ._map_batch import fit_map_batch
@@ -40,6 +41,7 @@ def _sample_each(tasks, prepared: dict, idx: list[int], maps: list, options: Bat
     return {i: r for (i, _), r in zip(todo, results)}
 
 
+@in_float64
 def fit_group(tasks: list[UnitTask], options: BatchOptions) -> list[dict]:
     """Rows of ``tasks`` (a packet), in order; each unit's files and row file written."""
     rows: list[dict | None] = [None] * len(tasks)

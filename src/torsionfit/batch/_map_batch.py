@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
 
+from .._x64 import in_float64
 from ..fit import MapResult, best_start, fit_map, iid_noise, laplace_from_parts, map_starts
 from ..fit._map import _message, laplace_parts, noise_pass, same_optimum
 from ._shape import stack_problems
@@ -65,6 +66,7 @@ def _serial(problems, run_names, seeds, **kwargs) -> list:
     return out
 
 
+@in_float64
 def fit_map_batch(problems: list, run_names: list, seeds: list[int], *, n_starts: int = 4,
                   max_steps: int = 300, noise_passes: int = 3, rtol: float = 1e-8,
                   atol: float = 1e-10, lanes: Lanes = "auto") -> list:

@@ -22,6 +22,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import in_float64
 from ..sample import run_sampler
 from ..sample._emcee import _log_density_one, batch_log_density
 from ._shape import stack_problems
@@ -102,6 +103,7 @@ def _lane_count(running: int, group: int) -> int:
     return min(group, 2 ** math.ceil(math.log2(running)))
 
 
+@in_float64
 def _sample_one(batcher: UnitBatcher, unit: int, problem, map_result, kwargs: dict, out: list) -> None:
     try:
         out[unit] = run_sampler(problem, map_result, evaluate=batcher.evaluator(unit), **kwargs)
@@ -111,6 +113,7 @@ def _sample_one(batcher: UnitBatcher, unit: int, problem, map_result, kwargs: di
         batcher.leave(unit)
 
 
+@in_float64
 def run_samplers(problems: list, map_results: list, kwargs: list[dict]) -> list:
     """``run_sampler(problems[i], map_results[i], **kwargs[i])`` for every unit (all of one
     shape and walker count), advanced together; one ``SampleResult`` — or the exception that

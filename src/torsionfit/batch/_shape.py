@@ -7,6 +7,7 @@ import hashlib
 import jax
 import jax.numpy as jnp
 
+from .._x64 import in_float64
 from ..fit import FitProblem
 
 
@@ -17,6 +18,7 @@ def shape_key(problem: FitProblem) -> str:
     return hashlib.sha1(text.encode()).hexdigest()[:12]
 
 
+@in_float64
 def stack_problems(problems: list[FitProblem]) -> FitProblem:
     """One FitProblem whose every array has a leading unit axis (all of one shape)."""
     keys = {shape_key(p) for p in problems}

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import in_float64
 from .. import model as m
 from ..model import model_with_effects as truth_model
 from .._errors import InputError
@@ -89,6 +90,7 @@ def _quantise(x, step):
     return x if step is None else np.round(x / step) * step
 
 
+@in_float64
 def simulate(bench: Bench, seed: int | None = None) -> Simulation:
     """Simulate every run of ``bench`` with its sensors; ``seed`` overrides the bench's."""
     rng = np.random.default_rng(bench.seed if seed is None else seed)

@@ -7,6 +7,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import in_float64
 from ..fit import FitProblem, MapResult
 from ..io import Campaign
 
@@ -97,6 +98,7 @@ def variogram_noise(residual: np.ndarray) -> tuple[float, float]:
     return float(np.sqrt(marginal_var * (1.0 - rho**2))) or 1e-12, rho
 
 
+@in_float64
 def fit_context(campaign: Campaign, effects: dict, map_result: MapResult) -> FitContext:
     problem = map_result.problem
     u = jnp.asarray(map_result.u)

@@ -5,6 +5,7 @@ direction, and the parts of the angle along a measured loop. Stiffness in N·m/a
 import equinox as eqx
 import numpy as np
 
+from .._x64 import in_float64
 from ..io import Campaign, HysteresisRun
 from ..plots import components_over_draws
 from ..report import campaign_model, derived_metrics_for
@@ -18,6 +19,7 @@ def _derived(fit, campaign: Campaign):
     return derived_metrics_for(campaign, campaign_model(campaign, fit.options), fit.options.lost_motion_pct)
 
 
+@in_float64
 def secant_draws(fit, loading_rates_Nm_per_s) -> np.ndarray:
     """(draws, rates) the paper's K_s = T_r / (θ(T_r, end of step 5) − θ_start) of the fitted
     model run through the five-step protocol from rest at each loading rate (N·m/arcmin)."""
@@ -36,11 +38,13 @@ def secant_draws(fit, loading_rates_Nm_per_s) -> np.ndarray:
     return np.stack(columns, axis=1)
 
 
+@in_float64
 def quasi_static_rate(fit) -> float:
     """The loading rate (N·m/s) standing for τ̇ → 0: :data:`QUASI_STATIC_RATE_FRACTION` · T_r."""
     return QUASI_STATIC_RATE_FRACTION * fit.campaign.reducer.rated_torque_Nm
 
 
+@in_float64
 def kd_draws(fit, torque_Nm, speed_rpm, direction: int = 1) -> np.ndarray:
     """(draws, points) K_d = τ / TE(180°) of the fitted model at paired 1-D ``torque_Nm`` and
     ``speed_rpm`` (direction +1 forward, −1 backward), TE against the model's unloaded zero."""
@@ -51,6 +55,7 @@ def kd_draws(fit, torque_Nm, speed_rpm, direction: int = 1) -> np.ndarray:
                                             np.full(torque_Nm.shape, float(direction))))
 
 
+@in_float64
 def run_component_draws(fit, n_draws: int, seed: int, max_points: int = 1500) -> dict:
     """Parts of the angle (rad) along every fitted run for ``n_draws`` posterior draws, by run
     name: ``{"elastic", "friction", "geometric", "creep", "kinematic", "offset", "total"}`` and,

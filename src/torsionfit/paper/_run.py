@@ -7,6 +7,7 @@ import sys
 import time
 from pathlib import Path
 
+from .._x64 import in_float64
 from .._errors import InputError
 from ._document import paper_document
 from ._page import comparison_page
@@ -19,6 +20,7 @@ def _one_line(func) -> str:
     return " ".join((func.__doc__ or "").strip().split("\n\n")[0].split())
 
 
+@in_float64
 def make_figures(repro: Reproduction, out_dir, keys=None) -> list[Path]:
     """The figures ``keys`` (default all, :data:`FIGURES`) as PNG and PDF in ``out_dir``."""
     keys = list(FIGURES) if keys is None else list(keys)
@@ -34,6 +36,7 @@ def make_figures(repro: Reproduction, out_dir, keys=None) -> list[Path]:
     return paths
 
 
+@in_float64
 def run_paper(out_dir, settings: PaperSettings, data_dir=None, progress=None, command: str = "torsionfit paper") -> dict:
     """Write ``out_dir/figures/*.png|pdf``, ``out_dir/tables.json`` and ``out_dir/README.md``
     (the comparison page); returns the ``tables.json`` document."""
@@ -62,6 +65,7 @@ def write_page(out_dir, command: str = "torsionfit paper") -> Path:
     return out / "README.md"
 
 
+@in_float64
 def figure_script(key: str, argv=None) -> int:
     """``python paper_figures/<figure>.py -o DIR [--quick] [--seed N] [--data DIR]``: one figure."""
     parser = argparse.ArgumentParser(description=_one_line(FIGURES[key]))

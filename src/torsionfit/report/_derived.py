@@ -20,6 +20,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import in_float64
 from .. import model as m
 from .._chunks import CHUNK, map_chunks
 from ..io import Campaign
@@ -267,12 +268,14 @@ class DerivedMetrics(eqx.Module):
         rate; as part of the compile key they would compile the metrics anew per rate."""
         return dataclasses.replace(self, specs=())
 
+    @in_float64
     def over_draws(self, values_batch: dict) -> np.ndarray:
         """(draws, metrics) for a dict of stacked parameter draws."""
         kernel = self._kernel()
         chunk = _draws_per_call(self.protocol.torque_Nm.shape[0])
         return map_chunks(lambda v: _metrics_over_draws(kernel, v), values_batch, chunk)
 
+    @in_float64
     def kd_over_draws(self, values_batch: dict, torque_Nm, speed_rpm, direction) -> np.ndarray:
         """K_d = τ / TE(180°) (N·m/arcmin) of the model at any TE conditions, read as ``kd_mean``
         (``metrics.te_reading`` over the 180° window): (draws, conditions) for stacked parameter
@@ -314,6 +317,7 @@ def _kd_over_draws(derived: DerivedMetrics, values_batch: dict, torque_Nm, speed
     return jax.vmap(lambda values: per_draw(values, torque_Nm, speed_rad_s, direction, has_ref))(values_batch)
 
 
+@in_float64
 def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_pct: float = 3.0) -> DerivedMetrics:
     """Metric definitions and evaluation machinery for ``campaign`` fitted with ``model``."""
     rated = campaign.reducer.rated_torque_Nm

@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import in_float64
 from .._chunks import map_chunks
 from .._errors import InputError
 from ..fit import NoiseOptions, build_problem, fit_map
@@ -107,12 +108,14 @@ def _residuals(problem, u):
     return problem.residuals(u)  # jitted: eagerly, every scan compiles anew on each call
 
 
+@in_float64
 def campaign_model(campaign: Campaign, options: FitOptions = FitOptions()):
     """The model :func:`fit_campaign` fits to ``campaign`` with ``options``."""
     kinds = [r.kind for r in campaign.runs]
     return model_with_effects(kinds, options.effects, campaign.reducer.rated_torque_Nm, free_friction_start=True)
 
 
+@in_float64
 def prepare_fit(campaign: Campaign, options: FitOptions = FitOptions()):
     """(decimated campaign, model, problem) that :func:`fit_campaign` fits; InputError on data
     that cannot be fitted."""
@@ -123,6 +126,7 @@ def prepare_fit(campaign: Campaign, options: FitOptions = FitOptions()):
     return campaign, model, build_problem(campaign, model, options.noise)
 
 
+@in_float64
 def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: int = 0) -> CampaignFit:
     """Fit ``campaign``; InputError on data that cannot be fitted."""
     campaign, model, problem = prepare_fit(campaign, options)
@@ -194,6 +198,7 @@ def sample_posterior(problem, map_result, options: FitOptions, seed: int):
     return res, "nuts", f"auto: NUTS, because {why}"
 
 
+@in_float64
 def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_result, seed: int,
                sample_result=None) -> CampaignFit:
     """Everything after the MAP: posterior (emcee or Laplace draws), derived metrics, RMSE —

@@ -64,6 +64,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
+from .._x64 import in_float64
 from .._chunks import map_chunks
 from ._laplace_move import RETIRE_BELOW, LaplaceMove
 
@@ -362,6 +363,7 @@ def _acceptance_windows(full_chain: np.ndarray, burn: int, thin: int) -> np.ndar
 
 
 # --- the sampler ----------------------------------------------------------------------------
+@in_float64
 def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
                 max_steps: int = 20_000, check_every: int = 500, tau_factor: float = 50.0,
                 min_steps: int = 1000, tau_rtol: float = 0.01,
@@ -462,7 +464,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
     n_steps = int(sampler.iteration)
     if not converged and not stopped:
         reason = f"not converged after {n_steps} steps (max_steps = {max_steps}): {reason}"
-        warnings.warn(f"emcee: {reason}", ConvergenceWarning, stacklevel=2)
+        warnings.warn(f"emcee: {reason}", ConvergenceWarning, stacklevel=3)  # 3: past the float64 wrapper
 
     burn, thin = _burn_thin(tau, n_steps)
     full = sampler.get_chain()

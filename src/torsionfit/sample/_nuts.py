@@ -56,6 +56,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
+from .._x64 import in_float64
 from ._emcee import ConvergenceWarning, SampleResult, _regularised_cov, initial_walkers
 
 __all__ = ["NutsResult", "chain_diagnostics", "run_nuts"]
@@ -342,6 +343,7 @@ def _load(path) -> dict | None:
 
 
 # --- the sampler ---------------------------------------------------------------------------
+@in_float64
 def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int = 1000,
              initial_draws: int = 500, max_draws: int = 4000, target_accept: float = 0.8,
              rhat_max: float = 1.01, min_ess: float = 400.0, backend_path=None, resume: bool = False,
@@ -424,7 +426,7 @@ def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int
         target = min(2 * n_draws, max_draws)
     if not converged:
         reason = f"not converged after {n_draws} draws per chain (max_draws = {max_draws}): {reason}"
-        warnings.warn(f"nuts: {reason}", ConvergenceWarning, stacklevel=2)
+        warnings.warn(f"nuts: {reason}", ConvergenceWarning, stacklevel=3)  # 3: past the float64 wrapper
 
     chain = blocks["position"]
     total = chain.shape[0] * chain.shape[1]

@@ -54,6 +54,7 @@ import jax.numpy as jnp
 import numpy as np
 import xarray as xr
 
+from .._x64 import in_float64
 from ._emcee import SampleResult
 
 __all__ = ["convergence_summary", "load_tree", "psis_loo", "run_variable_names", "save_tree",
@@ -177,6 +178,7 @@ def _json(obj) -> str:
 
 
 # --- the tree ------------------------------------------------------------------------------
+@in_float64
 def to_datatree(problem, sample_result: SampleResult, run_names, observed_names=None, *,
                 n_predictive_draws: int = 100, seed: int = 0, linear: str = "sample") -> xr.DataTree:
     """The ArviZ tree of a sampled fit (layout in the module docstring).
