@@ -39,14 +39,17 @@ def log_density(problem: FitProblem, u):
 
 @eqx.filter_jit
 def _noise_update(problem: FitProblem, u):
-    """Closed-form noise update at u: ρ_r = lag-1 autocorrelation of the residuals (AR(1)
-    runs), σ_r² = mean innovation², s_r² = σ_r² − floor_r² (kept positive)."""
+    """Closed-form noise update at u: ρ_r = the conditional MLE Σ e_t e_{t−1} / Σ e_{t−1}² of the
+    residuals (AR(1) runs), σ_r² = mean innovation², s_r² = σ_r² − floor_r² (kept positive)."""
     log_s, logits = [], []
     for r, e in enumerate(problem.residuals(u)):
         rho = 0.0
         if problem.ar1[r]:
-            e0 = e - jnp.mean(e)
-            rho = jnp.clip(jnp.dot(e0[1:], e0[:-1]) / jnp.maximum(jnp.dot(e0, e0), 1e-300), 0.01, _RHO_MAX)
+            # not demeaned: the likelihood's AR(1) has mean zero, and a run's constant misfit (TE
+            # runs sharing one zero offset) stays in its innovations — with ρ of the demeaned
+            # residual (≈ 0 for a level plus white noise) that level counted as white noise, and a
+            # diagnose refit that removed a periodic error scored below the model without it
+            rho = jnp.clip(jnp.dot(e[1:], e[:-1]) / jnp.maximum(jnp.dot(e[:-1], e[:-1]), 1e-300), 0.01, _RHO_MAX)
             logits.append(jnp.log(rho) - jnp.log1p(-rho))
         innov2 = (e[1:] - rho * e[:-1]) ** 2
         floor2 = problem.floors[r] ** 2
