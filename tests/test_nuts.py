@@ -190,13 +190,14 @@ def test_nuts_tree_has_the_emcee_layout_and_nuts_statistics(small_nuts_fit):
     for g in ("posterior", "posterior_predictive", "log_likelihood", "observed_data", "sample_stats"):
         assert g in tree.children
     post, stats = tree["posterior"], tree["sample_stats"]
-    assert (post.sizes["chain"], post.sizes["draw"]) == (4, res.n_draws)
-    np.testing.assert_allclose(post["stiffness"].values, np.exp(res.chain[..., 0].T), rtol=1e-12)
+    kept = post["draw"].values  # the tree keeps every k-th draw (k = tree_thin), the draws its metrics are of
+    assert post.sizes["chain"] == 4 and np.array_equal(kept, np.arange(0, res.n_draws, stats.attrs["tree_thin"]))
+    np.testing.assert_allclose(post["stiffness"].values, np.exp(res.chain[kept, :, 0].T), rtol=1e-12)
     assert post.attrs["inference_library"] == "blackjax" and stats.attrs["sampler"] == "nuts"
     assert stats["diverging"].dtype == bool and stats["diverging"].dims == ("chain", "draw")
-    np.testing.assert_array_equal(stats["diverging"].values, res.diverging.T)
-    np.testing.assert_array_equal(stats["tree_depth"].values, res.tree_depth.T)
-    np.testing.assert_array_equal(stats["n_steps"].values, res.n_leapfrog.T)
+    np.testing.assert_array_equal(stats["diverging"].values, res.diverging[kept].T)
+    np.testing.assert_array_equal(stats["tree_depth"].values, res.tree_depth[kept].T)
+    np.testing.assert_array_equal(stats["n_steps"].values, res.n_leapfrog[kept].T)
     assert np.all((stats["acceptance_rate"].values >= 0) & (stats["acceptance_rate"].values <= 1))
     assert stats.attrs["n_divergent"] == res.n_divergent and stats.attrs["converged"] == int(res.converged)
     assert len(stats.attrs["step_size"]) == 4

@@ -30,7 +30,6 @@ from torsionfit.sample import (
     load_tree,
     psis_loo,
     run_sampler,
-    run_variable_names,
     save_tree,
     to_datatree,
 )
@@ -276,12 +275,6 @@ def test_ar1_noise_has_the_stated_variance_and_correlation():
     assert np.corrcoef(x[1:], x[:-1])[0, 1] == pytest.approx(rho, abs=0.01)
 
 
-def test_run_variable_names_are_safe_and_unique():
-    names = run_variable_names(["hyst-5", "te 5rpm/fw", "hyst_5"])
-    assert names[0] == "angle_hyst_5" and names[1] == "angle_te_5rpm_fw"
-    assert len(set(names)) == 3 and all(re.fullmatch(r"\w+", n) for n in names)
-
-
 # --- a real small campaign ----------------------------------------------------------------
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
@@ -312,7 +305,7 @@ def short_tree(small):
     with pytest.warns(ConvergenceWarning):
         res = run_sampler(small.problem, small.start, seed=0, max_steps=300, check_every=150,
                           progress=False)
-    tree = to_datatree(small.problem, res, small.runs, n_predictive_draws=40, seed=0)
+    tree = to_datatree(small.problem, res, small.runs, campaign=small.sim.campaign, seed=0)
     return res, tree
 
 
@@ -377,32 +370,34 @@ def test_datatree_layout(small, short_tree):
     np.testing.assert_allclose(post["torque_knot_correction"].values,
                                np.transpose(res.chain[..., problem.n_model:problem.n_nonlinear], (1, 0, 2)))
 
-    names = run_variable_names(runs)
-    import json
-    assert json.loads(tree.attrs["run_variables"]) == dict(zip(runs, names))
+    # every sample of every run on one observation dim, the same (chain, draw) grid as the posterior
+    n_obs = sum(len(y) for y in problem.y)
     for g in ("posterior_predictive", "log_likelihood"):
-        ds = tree[g]
-        assert (ds.sizes["chain"], ds.sizes["draw"]) == (1, 40)
-        assert ds["posterior_chain"].max() < n_walkers and ds["posterior_draw"].max() < n_draws
-        for r, (run, var) in enumerate(zip(runs, names)):
-            assert ds[var].dims == ("chain", "draw", f"{var}_sample")
-            assert ds[var].sizes[f"{var}_sample"] == len(problem.y[r])
-            assert ds[var].attrs["units"] == "rad" and ds[var].attrs["run"] == run
-            assert np.all(np.isfinite(ds[var].values))
+        da = tree[g]["angle"]
+        assert list(tree[g].data_vars) == ["angle"]  # az.loo needs no var_name
+        assert da.dims == ("chain", "draw", "observation") and da.sizes["observation"] == n_obs
+        assert (da.sizes["chain"], da.sizes["draw"]) == (n_walkers, n_draws)
+        np.testing.assert_array_equal(da["draw"].values, post["draw"].values)
+        assert np.all(np.isfinite(da.values))
     obs = tree["observed_data"]
-    for r, var in enumerate(names):
-        np.testing.assert_array_equal(obs[var].values, np.asarray(problem.y[r]))
+    for r, run in enumerate(runs):
+        mine = obs["run"].values == run
+        np.testing.assert_array_equal(obs["angle"].values[mine], np.asarray(problem.y[r]))
+        np.testing.assert_array_equal(obs["run_sample"].values[mine], np.arange(len(problem.y[r])))
+    hyst = small.sim.campaign.runs[0]
+    const = tree["constant_data"]
+    np.testing.assert_array_equal(const["torque"].values[obs["run"].values == hyst.name], hyst.torque_Nm)
+    np.testing.assert_array_equal(const["time"].values[obs["run"].values == hyst.name], hyst.time_s)
+    assert const["torque"].attrs["units"] == "N·m"
     # the predictive scatters around the data at about the noise level
-    for var in names:
-        resid = tree["posterior_predictive"][var].values[0] - obs[var].values
-        assert np.sqrt(np.mean(resid**2)) < 10 * float(post["noise_sigma"].max())
+    resid = tree["posterior_predictive"]["angle"].values - obs["angle"].values
+    assert np.sqrt(np.mean(resid**2)) < 10 * float(post["noise_sigma"].max())
     stats = tree["sample_stats"]
     assert stats["lp"].dims == ("chain", "draw") and stats["acceptance_rate"].dims == ("chain", "draw")
     np.testing.assert_allclose(stats["lp"].values, res.log_prob.T)
     for key in ("tau_max", "n_steps", "burn_in", "thin", "converged"):
         assert key in stats.attrs
-    assert stats.attrs["converged"] == 0 and stats.attrs["n_steps"] == 300
-    assert 0 < tree["log_likelihood"].attrs["reff"] <= 1
+    assert stats.attrs["converged"] == 0 and stats.attrs["n_steps"] == 300 and stats.attrs["tree_thin"] == 1
 
 
 def test_netcdf_round_trip(short_tree, tmp_path):
@@ -439,11 +434,14 @@ def test_psis_loo_runs_on_the_tree(short_tree):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # Pareto-k warnings on a 300-step chain are expected
         pooled = psis_loo(tree)
-        one = psis_loo(tree, var_name="angle_hyst_5")
-        plain = arviz.loo(tree, var_name="angle_hyst_5", reff=tree["log_likelihood"].attrs["reff"])
-    n_obs = sum(tree["observed_data"][v].size for v in tree["observed_data"].data_vars)
+        one = psis_loo(tree, run="hyst-5")
+        plain = arviz.loo(tree)
+    n_obs = tree["observed_data"]["angle"].size
     assert pooled.n_data_points == n_obs and np.isfinite(pooled.elpd) and np.isfinite(pooled.se)
-    assert one.elpd == pytest.approx(plain.elpd)
+    assert pooled.elpd == pytest.approx(plain.elpd)
+    assert one.n_data_points == int(np.sum(tree["observed_data"]["run"].values == "hyst-5"))
+    with pytest.raises(ValueError, match="no run 'nope'"):
+        psis_loo(tree, run="nope")
 
 
 def test_linear_parameters_drawn_from_their_conditional_posterior(small):
@@ -456,8 +454,8 @@ def test_linear_parameters_drawn_from_their_conditional_posterior(small):
                        tau=np.ones(problem.dim), n_steps=n_draws, burn_in=0, thin=1,
                        acceptance_fraction=np.zeros(n_walkers), converged=False, reason="test",
                        names=tuple(problem.names(small.runs)))
-    prof = to_datatree(problem, res, small.runs, n_predictive_draws=40, linear="profile")["posterior"]
-    drawn = to_datatree(problem, res, small.runs, n_predictive_draws=40)["posterior"]
+    prof = to_datatree(problem, res, small.runs, linear="profile")["posterior"]
+    drawn = to_datatree(problem, res, small.runs)["posterior"]
     full = problem.full_values(jnp.asarray(u))
     assert np.allclose(prof["te_offset"].values, float(np.ravel(full["te_offset"])[0]))
     # A from the whitened design matrices, as the likelihood builds it

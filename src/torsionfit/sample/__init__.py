@@ -1,4 +1,4 @@
-"""Posterior sampling (emcee, NUTS) and the ArviZ tree of a fit (DESIGN §2, §5.2)."""
+"""Posterior sampling (emcee, NUTS, Laplace draws) and the ArviZ tree of a fit (DESIGN §2, §5.2)."""
 
 from ._emcee import (
     BufferedHDFBackend as BufferedHDFBackend,
@@ -13,11 +13,13 @@ from ._nuts import (
     chain_diagnostics as chain_diagnostics,
     run_nuts as run_nuts,
 )
+from ._laplace import LaplaceResult as LaplaceResult, laplace_result as laplace_result
 from ._tree import (
     convergence_summary as convergence_summary,
+    draw_thinning as draw_thinning,
     load_tree as load_tree,
+    pointwise_draw_limit as pointwise_draw_limit,
     psis_loo as psis_loo,
-    run_variable_names as run_variable_names,
     save_tree as save_tree,
     to_datatree as to_datatree,
 )
