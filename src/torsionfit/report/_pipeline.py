@@ -3,6 +3,7 @@ the first checks — ``auto`` — or the Laplace approximation) → derived metr
 uncertainty → ``fit.json``, ``posterior.nc`` and figures."""
 
 import dataclasses
+import functools
 import json
 import math
 import warnings
@@ -65,7 +66,6 @@ class CampaignFit:
     metric_draws: np.ndarray  # (draws, metrics)
     diagnostics: dict
     rmse_arcsec: dict  # per run, at the MAP
-    tree: object = None  # ArviZ DataTree (emcee or NUTS) or None
     sample_result: object = None
     #: SI parameter values (name → (draws, ...)) of the draws behind ``metric_draws``, row by
     #: row: further model quantities of the same draws (e.g. K_d at any condition) use these.
@@ -73,6 +73,15 @@ class CampaignFit:
     #: per-run offsets and drift (nuisance of one measured run; the metrics' runs have none)
     metric_values: dict | None = None
     seed: int | None = None  # the fit's seed (fit.json's provenance)
+    #: the ArviZ tree made with the fit (emcee, NUTS), or a function of no arguments that makes
+    #: it (Laplace: a model run per draw, which callers reading only the metrics need not pay)
+    tree_source: object = field(default=None, repr=False)
+
+    @functools.cached_property
+    def tree(self):
+        """The ArviZ ``DataTree`` of the fit (``torsionfit.sample.to_datatree``; Laplace: draws
+        of the approximation), made on first use for Laplace."""
+        return self.tree_source() if callable(self.tree_source) else self.tree_source
 
     @property
     def run_names(self) -> list[str]:
@@ -200,6 +209,50 @@ def sample_posterior(problem, map_result, options: FitOptions, seed: int):
     return res, "nuts", f"auto: NUTS, because {why}"
 
 
+def _sampler_diagnostics(sample_result, used: str, conv: dict, chain: np.ndarray) -> dict:
+    """fit.json's diagnostics of an emcee or NUTS run; ``conv``: R̂ and ESS over all its kept
+    draws (``convergence_summary``)."""
+    if used == "nuts":
+        # the rule (R̂ ≤ 1.01, bulk and tail ESS ≥ 400 for every entry of u, no divergence)
+        # was checked on u by run_nuts; R̂ and ESS are rank based, so they hold for the
+        # physical values (monotone maps of u) alike
+        return {
+            "converged": bool(sample_result.converged),
+            "rhat_max": conv["rhat_max"],
+            "ess_min": conv["ess_min"],
+            "ess_tail_min": float(np.nanmin(sample_result.ess_tail)),
+            "n_divergent": sample_result.n_divergent,
+            "tau_max": float(np.max(sample_result.tau)),
+            "n_steps": int(sample_result.n_steps),
+            "n_warmup": int(sample_result.n_warmup),
+            "n_chains": int(chain.shape[1]),
+            "n_draws": int(chain.shape[0]),
+            "n_grad_evals": int(sample_result.n_grad_evals),
+            "step_size": [float(x) for x in sample_result.step_size],
+            "mean_tree_depth": float(np.mean(sample_result.tree_depth)),
+            "reason": sample_result.reason or "",
+        }
+    return {
+        "converged": bool(sample_result.converged and conv["rhat_max"] < 1.01 + 0.04),
+        "rhat_max": conv["rhat_max"],
+        "ess_min": conv["ess_min"],
+        "tau_max": float(np.max(sample_result.tau)),
+        "n_steps": int(sample_result.n_steps),
+        "n_walkers": int(chain.shape[1]),
+        "reason": sample_result.reason or "",
+    }
+
+
+@in_float64
+def _laplace_tree(problem, map_result, draws_u, names, specs, metric_draws, campaign, seed):
+    """The ArviZ tree of Laplace draws ``draws_u`` (one chain) with their metrics."""
+    from ..sample import laplace_result, to_datatree
+
+    result = laplace_result(problem, map_result, draws_u, problem.names(names), seed=seed)
+    return to_datatree(problem, result, names, metric_specs=specs, metric_draws=metric_draws, campaign=campaign,
+                       seed=seed)
+
+
 @in_float64
 def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_result, seed: int,
                sample_result=None) -> CampaignFit:
@@ -210,52 +263,28 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     together); else it is made here (:func:`sample_posterior`)."""
     names = [r.name for r in campaign.runs]
     rng = np.random.default_rng(seed)
-    tree = None
     if options.sampler not in SAMPLERS:
         raise InputError(f"sampler must be one of {', '.join(SAMPLERS)}, got {options.sampler!r}")
-    if options.sampler != "laplace":
-        from ..sample import convergence_summary, to_datatree
+    from ..sample import convergence_summary, draw_thinning, pointwise_draw_limit, to_datatree
 
+    # draws the ArviZ tree can hold with its pointwise log-likelihood and predictive
+    tree_limit = pointwise_draw_limit(sum(len(y) for y in problem.y))
+    if options.sampler != "laplace":
         if sample_result is None:
             sample_result, used, choice = sample_posterior(problem, map_result, options, seed)
         else:
             used, choice = sample_result.sampler, "sampled with the other units of its shape (batch)"
         chain = np.asarray(sample_result.chain)
         draws_u = chain.reshape(-1, chain.shape[-1])
-        tree = to_datatree(problem, sample_result, names, seed=seed)
-        conv = convergence_summary(tree)
+        n_draw, n_chain = chain.shape[:2]
+        # the metrics of every k-th draw of each chain (at most metric_draws in all); the tree
+        # keeps every j·k-th of them (within its size limit), so its metrics are the same numbers
+        k_metric = draw_thinning(n_chain, n_draw, options.metric_draws)
+        metric_grid = np.arange(0, n_draw, k_metric)
+        tree_grid = np.arange(0, n_draw, draw_thinning(n_chain, n_draw, tree_limit, step=k_metric))
+        pick = (metric_grid[None, :] * n_chain + np.arange(n_chain)[:, None]).ravel()  # chain by chain
         diagnostics = {"sampler": used, "sampler_choice_reason": choice}
-        if used == "nuts":
-            # the rule (R̂ ≤ 1.01, bulk and tail ESS ≥ 400 for every entry of u, no divergence)
-            # was checked on u by run_nuts; R̂ and ESS are rank based, so they hold for the
-            # physical values (monotone maps of u) alike
-            diagnostics.update({
-                "converged": bool(sample_result.converged),
-                "rhat_max": conv["rhat_max"],
-                "ess_min": conv["ess_min"],
-                "ess_tail_min": float(np.nanmin(sample_result.ess_tail)),
-                "n_divergent": sample_result.n_divergent,
-                "tau_max": float(np.max(sample_result.tau)),
-                "n_steps": int(sample_result.n_steps),
-                "n_warmup": int(sample_result.n_warmup),
-                "n_chains": int(chain.shape[1]),
-                "n_draws": int(chain.shape[0]),
-                "n_grad_evals": int(sample_result.n_grad_evals),
-                "step_size": [float(x) for x in sample_result.step_size],
-                "mean_tree_depth": float(np.mean(sample_result.tree_depth)),
-                "reason": sample_result.reason or "",
-            })
-        else:
-            diagnostics.update({
-                "converged": bool(sample_result.converged and conv["rhat_max"] < 1.01 + 0.04),
-                "rhat_max": conv["rhat_max"],
-                "ess_min": conv["ess_min"],
-                "tau_max": float(np.max(sample_result.tau)),
-                "n_steps": int(sample_result.n_steps),
-                "n_walkers": int(chain.shape[1]),
-                "reason": sample_result.reason or "",
-            })
-    elif options.sampler == "laplace":
+    else:
         cov = 0.5 * (map_result.cov + map_result.cov.T)
         draws_u = rng.multivariate_normal(map_result.u, cov, size=options.laplace_draws, method="eigh")
         diagnostics = {
@@ -265,24 +294,35 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
             "ess_min": float(options.laplace_draws),
             "reason": "" if map_result.converged else f"MAP did not converge: {map_result.message}",
         }
+        pick = rng.choice(len(draws_u), size=min(options.metric_draws, len(draws_u)), replace=False)
     diagnostics["map_converged"] = bool(map_result.converged)
     diagnostics["map_message"] = map_result.message
 
-    pick = rng.choice(len(draws_u), size=min(options.metric_draws, len(draws_u)), replace=False)
     derived = derived_metrics_for(campaign, model, options.lost_motion_pct)
     linear = derived.reads_linear()
     values = map_chunks(lambda u: _values_over_draws(problem, u, linear), draws_u[pick])
-    metric_draws = np.asarray(derived.over_draws(values))
-    bad = ~np.all(np.isfinite(metric_draws), axis=1)
+    all_metric_draws = np.asarray(derived.over_draws(values))
+    bad = ~np.all(np.isfinite(all_metric_draws), axis=1)
     if bad.any():
         warnings.warn(f"{bad.sum()} of {len(bad)} draws gave non-finite metrics and were dropped")
-        metric_draws = metric_draws[~bad]
+    metric_draws = all_metric_draws[~bad]
     metric_values = {k: np.asarray(v)[~bad] for k, v in values.items()}
+
+    if options.sampler == "laplace":
+        # the first of the metrics' (independent) draws, as one chain, when first asked for
+        n_tree = min(len(pick), tree_limit)
+        tree = functools.partial(_laplace_tree, problem, map_result, draws_u[pick[:n_tree]], names,
+                                 derived.specs, all_metric_draws[None, :n_tree], campaign, seed)
+    else:
+        tree_metrics = all_metric_draws.reshape(n_chain, len(metric_grid), -1)[:, np.searchsorted(metric_grid, tree_grid)]
+        tree = to_datatree(problem, sample_result, names, draws=tree_grid, metric_specs=derived.specs,
+                           metric_draws=tree_metrics, campaign=campaign, seed=seed)
+        diagnostics.update(_sampler_diagnostics(sample_result, used, convergence_summary(tree), chain))
     residuals = _residuals(problem, jnp.asarray(map_result.u))
     rmse = {n: float(np.sqrt(np.mean(np.asarray(e) ** 2)) / ARCSEC) for n, e in zip(names, residuals)}
     return CampaignFit(campaign=campaign, options=options, problem=problem, map_result=map_result,
                        draws_u=np.asarray(draws_u), metric_specs=derived.specs, metric_draws=metric_draws,
-                       diagnostics=diagnostics, rmse_arcsec=rmse, tree=tree, sample_result=sample_result,
+                       diagnostics=diagnostics, rmse_arcsec=rmse, tree_source=tree, sample_result=sample_result,
                        metric_values=metric_values, seed=seed)
 
 
@@ -361,7 +401,7 @@ def summary_table(doc: dict) -> str:
 
 
 def write_fit(fit: CampaignFit, out_dir, command: str | None = None) -> dict:
-    """Write ``fit.json`` (and ``posterior.nc`` with emcee or NUTS) to ``out_dir``; return fit.json."""
+    """Write ``fit.json`` and ``posterior.nc`` (the ArviZ tree) to ``out_dir``; return fit.json."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     doc = fit_json(fit, command)  # command: recorded in its provenance
