@@ -54,6 +54,7 @@ Choices, and why:
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import warnings
@@ -67,6 +68,9 @@ import numpy as np
 from .._x64 import in_float64
 from .._chunks import map_chunks
 from ._laplace_move import RETIRE_BELOW, LaplaceMove
+
+#: progress lines (INFO); the command line shows them on stderr unless --quiet
+log = logging.getLogger(__name__)
 
 __all__ = ["BufferedHDFBackend", "ConvergenceWarning", "SampleResult", "batch_log_density",
            "default_n_walkers", "initial_walkers", "run_sampler"]
@@ -416,6 +420,9 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
         n_walkers, dim, _LogProb(problem, batch=n_walkers // 2, evaluate=evaluate), vectorize=True, backend=backend,
         moves=mixture,
     )
+    # emcee wraps the log-density in a function that prints every walker's position on any
+    # exception, Ctrl-C included (hundreds of lines); ours takes no extra arguments to carry
+    sampler.log_prob_fn = sampler.log_prob_fn.f
     if backend is not None:
         backend.step_attrs = laplace.counters
     tau_prev = None
@@ -452,6 +459,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
                                    min_steps, names)
         if converged:
             break
+        log.info("emcee: %s", steps_left(int(sampler.iteration), float(np.max(tau)), tau_factor, min_steps, max_steps))
         if stop_when is not None:
             why = stop_when(int(sampler.iteration), tau)
             if why:
@@ -487,6 +495,18 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
                                    f"{laplace.acceptance:.3f} < {RETIRE_BELOW}), its share to DEMove"
                                    if laplace.retired else ""),
     )
+
+
+def steps_left(n_steps: int, tau_max: float, tau_factor: float, min_steps: int, max_steps: int) -> str:
+    """Progress text: steps done and an estimate of those left — to ``tau_factor`` · τ_max (τ
+    from the chain so far, an estimate that grows with the chain) and ``min_steps``, at most
+    ``max_steps``."""
+    need = max(tau_factor * tau_max, min_steps) if np.isfinite(tau_max) else math.inf
+    left = min(need, max_steps) - n_steps
+    if not np.isfinite(need):
+        return f"{n_steps} steps of at most {max_steps}; the walkers have not moved enough to estimate τ yet"
+    return (f"{n_steps} steps of at most {max_steps}; τ_max ≈ {tau_max:.1f} → about {max(left, 0):.0f} more "
+            f"(needs {tau_factor:g} τ_max ≈ {need:.0f}" + (", beyond the cap" if need > max_steps else "") + ")")
 
 
 def _retire_if_rejected(laplace, iteration: int, check_every: int) -> None:
