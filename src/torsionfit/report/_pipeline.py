@@ -5,6 +5,7 @@ uncertainty → ``fit.json``, ``posterior.nc`` and figures."""
 import dataclasses
 import functools
 import json
+import logging
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -26,6 +27,8 @@ from ..units import ANGLE_UNITS
 from ._derived import derived_metrics_for
 
 ARCSEC = ANGLE_UNITS["arcsec"]
+#: progress lines (INFO); the command line shows them on stderr unless --quiet
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -141,7 +144,11 @@ def prepare_fit(campaign: Campaign, options: FitOptions = FitOptions()):
 def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: int = 0) -> CampaignFit:
     """Fit ``campaign``; InputError on data that cannot be fitted."""
     campaign, model, problem = prepare_fit(campaign, options)
+    log.info("MAP from %d starts, %d parameters (the first fit of a model shape compiles it first)",
+             options.n_starts, problem.dim)
     map_result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed)
+    log.info("MAP %s; now the posterior (%s) and the metrics", "converged" if map_result.converged
+             else f"not converged ({map_result.message})", options.sampler)
     return finish_fit(campaign, options, model, problem, map_result, seed)
 
 
