@@ -1,14 +1,22 @@
-"""``torsionfit`` command line. Bad input → one line on stderr and exit code 2, never a traceback."""
+"""``torsionfit`` command line. Bad input → one line on stderr and exit code 2, never a traceback;
+Ctrl-C → one line and exit code 130. Progress goes to stderr (``--quiet``: none), results to
+stdout, and every JSON output records its provenance (version, seed, command line)."""
 
 import argparse
 import json
+import logging
 import sys
 import warnings
+from contextlib import contextmanager
 from pathlib import Path
 
+from . import __version__
 from ._errors import InputError
+from ._provenance import command_line, provenance
 
 EXIT_INPUT_ERROR = 2
+#: exit code after Ctrl-C (128 + SIGINT, as shells report it)
+EXIT_INTERRUPTED = 130
 
 
 def _cmd_simulate(args) -> int:
@@ -16,6 +24,7 @@ def _cmd_simulate(args) -> int:
     from .io import write_campaign
 
     bench = load_bench(args.bench)
+    _say(args)(f"read {args.bench}: simulating {bench.label}")
     sim = simulate(bench, seed=args.seed)
     manifest = write_campaign(sim.campaign, args.output, label=bench.label, bench_file=bench.path)
     print(f"wrote {manifest} ({len(sim.campaign.runs)} runs, {bench.label})")
@@ -36,7 +45,7 @@ def _cmd_metrics(args) -> int:
         name, note = next(iter(run["notes"].items()))
         raise InputError(f"run {run['name']!r}: no metric could be computed ({name}: {note})")
     if args.json:
-        json.dump(result, sys.stdout, indent=2)
+        json.dump({**result, "provenance": provenance(None, args.command_line)}, sys.stdout, indent=2)  # no seed: deterministic
         print()
     else:
         if campaign.notes:
@@ -50,6 +59,32 @@ def _progress(command: str, quiet: bool = False):
     if quiet:
         return lambda text: None
     return lambda text: print(f"[{command}] {text}", file=sys.stderr, flush=True)
+
+
+def _say(args):
+    """The progress callback of the command ``args`` runs."""
+    return _progress(args.command, args.quiet)
+
+
+@contextmanager
+def _progress_log(command: str, quiet: bool):
+    """torsionfit's progress log lines (INFO: the MAP's starts, emcee's steps left) as
+    ``[command] text`` on stderr while the command runs; none with ``quiet``. Undone after, as
+    ``main`` is also called from Python."""
+    logger = logging.getLogger("torsionfit")
+    if quiet:
+        yield
+        return
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter(f"[{command}] %(message)s"))
+    level = logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)
 
 
 def _parse_effects(items) -> dict:
@@ -92,13 +127,16 @@ def _cmd_fit(args) -> int:
         max_steps=args.max_steps,
         n_chains=args.chains,
         max_draws=args.max_draws,
-        progress=not args.no_progress,
+        progress=not args.quiet,
         backend_path=str(out / "chain.h5") if args.resume or args.save_chain else None,
         resume=args.resume,
         decimate=args.decimate,
     )
+    say = _say(args)  # progress once the input is known good: bad input is one line
+    say(f"read {args.campaign}: " + _campaign_line(campaign) + f"; sampler {args.sampler}")
     fit = fit_campaign(campaign, options, seed=args.seed)
-    doc = write_fit(fit, out)
+    say(f"writing {out}")
+    doc = write_fit(fit, out, command=args.command_line)
     from .plots import write_fit_figures
 
     write_fit_figures(fit, out / "figures")
@@ -115,9 +153,10 @@ def _cmd_diagnose(args) -> int:
     campaign = decimate(load_campaign(args.campaign), args.decimate)
     check_fittable(campaign)  # before the model is built from the rated torque
     options = DiagnoseOptions(initial_effects=_parse_effects(args.with_))
-    say = _progress("diagnose", quiet=args.quiet)
+    say = _say(args)  # progress once the input is known good: bad input is one line
+    say(f"read {args.campaign}: " + _campaign_line(campaign))
     result = diagnose(campaign, options, seed=args.seed, progress=say)
-    doc = write_diagnosis(result, campaign, args.output, seed=args.seed)
+    doc = write_diagnosis(result, campaign, args.output, seed=args.seed, command=args.command_line)
     print(summary_text(doc))
     print(f"wrote {Path(args.output) / 'diagnose.json'}, {Path(args.output) / 'figures'}/")
     return 0
@@ -129,20 +168,21 @@ def _cmd_accept(args) -> int:
     from .io import load_campaign
     from .report import FitOptions
 
+    say = _say(args)
     spec = load_spec(args.spec)
     options = FitOptions(effects=_parse_effects(args.with_), sampler=args.sampler, max_steps=args.max_steps,
-                         progress=not args.no_progress, decimate=args.decimate)
+                         progress=not args.quiet, decimate=args.decimate)
     out = Path(args.output)
     if args.campaign.is_dir() and not (args.campaign / "campaign.toml").is_file():
-        say = _progress("accept")
-        rows = accept_folder(args.campaign, spec, out, options, seed=args.seed, progress=say)
-        paths = write_batch_table(rows, out)
+        rows = accept_folder(args.campaign, spec, out, options, seed=args.seed, progress=say, command=args.command_line)
+        paths = write_batch_table(rows, out, provenance=provenance(args.seed, args.command_line))
         counts = {d: sum(r["decision"] == d for r in rows) for d in ("accept", "reject", "indeterminate", "error")}
         print(f"{len(rows)} units: " + ", ".join(f"{n} {d}" for d, n in counts.items()))
         print(f"wrote {paths[0]}, {paths[1]}")
         return batch_exit_code(rows)
+    # accept_campaign checks the spec against the campaign before any fit, then logs its progress
     result = accept_campaign(load_campaign(args.campaign), spec, options, seed=args.seed)
-    print(summary_text(write_accept(result, out)))
+    print(summary_text(write_accept(result, out, command=args.command_line)))
     print(f"wrote {out / 'accept.json'}")
     return EXIT_CODE[result.decision.decision]
 
@@ -166,8 +206,8 @@ def _cmd_batch(args) -> int:
                        progress=False, decimate=args.decimate),
         spec=spec, spec_digest=hashlib.sha256(args.spec.read_bytes()).hexdigest() if spec else None,
         posterior_units=posterior_sample(units, args.posterior_sample, args.seed),
-        figures=args.figures, group_size=args.group_size, seed=args.seed)
-    say = _progress("batch")
+        figures=args.figures, group_size=args.group_size, seed=args.seed, command=args.command_line)
+    say = _say(args)
     workers = args.workers if args.workers is not None else 1 if args.scheduler else default_workers()
     try:
         rows = run_batch(args.folder, args.output, options, scheduler=args.scheduler, force=args.force, progress=say,
@@ -188,13 +228,33 @@ def _cmd_batch(args) -> int:
 def _cmd_paper(args) -> int:
     from .paper import paper_settings, run_paper
 
-    say = _progress("paper", quiet=args.quiet)
+    say = _say(args)
     command = " ".join(["torsionfit paper -o DIR"] + (["--quick"] if args.quick else []) + ([f"--seed {args.seed}"] if args.seed else [])
                        + ([f"--sampler {args.sampler}"] if args.sampler else []))
     doc = run_paper(args.output, paper_settings(args.quick, args.seed, args.sampler), args.data, say, command)
     print(f"max deviation from the published tables {100 * doc['max_relative_deviation']:.3f} %; "
           f"wrote {args.output / 'tables.json'}, {args.output / 'README.md'}, {len(doc['figures'])} figure files")
     return 0
+
+
+def _campaign_line(campaign) -> str:
+    """One progress line: what was read."""
+    n = sum(len(r) for r in campaign.runs)
+    return (f"{len(campaign.runs)} runs ({len(campaign.hysteresis_runs)} hysteresis, {len(campaign.te_runs)} TE), "
+            f"{n} samples")
+
+
+def _interrupted(args) -> str:
+    """The one line after Ctrl-C: what is kept and how to go on."""
+    if args.command == "fit":
+        if args.save_chain or args.resume:
+            out = Path(args.output)
+            return (f"interrupted; the chain so far is kept in {out / 'chain.h5'} (emcee) or "
+                    f"{out / 'chain-nuts.npz'} (NUTS): the same command with --resume continues it")
+        return "interrupted; no chain was kept (--save-chain keeps one that --resume continues)"
+    if args.command == "batch":
+        return "interrupted; units already done keep their files: the same command skips them and does the rest"
+    return "interrupted"
 
 
 # Options several subcommands share; the defaults are the common name, default and help text,
@@ -228,12 +288,10 @@ def _add_decimate(p, help="fit block means of N consecutive samples") -> None:
     p.add_argument("--decimate", type=int, default=1, metavar="N", help=help)
 
 
-def _add_no_progress(p) -> None:
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
 def _add_quiet(p) -> None:
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress on stderr (results on stdout, warnings and errors still shown)")
+    p.add_argument("--no-progress", dest="quiet", action="store_true", help=argparse.SUPPRESS)  # the old spelling
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -241,6 +299,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="torsionfit",
         description="Torsional stiffness of gear reducers from test-bench data, with uncertainty.",
     )
+    parser.add_argument("--version", action="version", version=f"torsionfit {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -256,7 +315,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lost-motion-pct", type=float, default=3.0, help="±x %% of rated torque for lost motion (default 3)")
     p.add_argument("--t1-Nm", type=float, default=None, help="catalog knee T1 (default 0.25·T_r)")
     p.add_argument("--t2-Nm", type=float, default=None, help="catalog knee T2 (default 0.75·T_r)")
-    p.add_argument("--seed", type=int, default=None, help="unused: metrics are deterministic")
     p.set_defaults(func=_cmd_metrics)
 
     p = sub.add_parser("fit", help="fit the model: stiffness with uncertainty, its three parts, fit.json")
@@ -280,7 +338,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--save-chain", action="store_true",
                    help="keep the chain in OUTPUT/chain.h5 (emcee) / OUTPUT/chain-nuts.npz (NUTS)")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from those files")
-    _add_no_progress(p)
     _add_decimate(p, help="fit block means of N consecutive samples (dense benches; recorded in fit.json)")
     p.set_defaults(func=_cmd_fit)
 
@@ -289,7 +346,6 @@ def build_parser() -> argparse.ArgumentParser:
     _add_output(p)
     _add_seed(p)
     _add_with(p, help="start from a model with this extension already on (repeatable)")
-    _add_quiet(p)
     _add_decimate(p, help="diagnose block means of N consecutive samples (dense benches)")
     p.set_defaults(func=_cmd_diagnose)
 
@@ -311,7 +367,6 @@ def build_parser() -> argparse.ArgumentParser:
     _add_max_steps(p, help="cap on emcee steps; reaching it gives indeterminate")
     _add_with(p)
     _add_decimate(p)
-    _add_no_progress(p)
     p.set_defaults(func=_cmd_accept)
 
     p = sub.add_parser(
@@ -352,20 +407,20 @@ def build_parser() -> argparse.ArgumentParser:
                  help="posterior of the fits: the MAP's Laplace approximation (default), emcee (hours on 2 cores), "
                       "nuts or auto (as for fit); the page's fit table names the sampler each fit used")
     p.add_argument("--data", type=Path, default=None, help="folder holding paper-small/ and paper-large/ (default: the checkout's data/)")
-    _add_quiet(p)
     p.set_defaults(func=_cmd_paper)
+    for p in sub.choices.values():
+        _add_quiet(p)
     return parser
 
 
 def _one_line_warnings(command: str):
-    """``warnings.showwarning`` that prints a PlausibilityWarning as one stderr line
-    (``torsionfit CMD: warning: ...``) and any other warning as Python does."""
-    from .io import PlausibilityWarning
-
+    """``warnings.showwarning`` that prints torsionfit's own warnings (implausible data,
+    extrapolated decisions, unconverged chains) as one stderr line (``torsionfit CMD: warning:
+    ...``) and any other warning as Python does."""
     default = warnings.showwarning
 
     def show(message, category, filename, lineno, file=None, line=None):
-        if issubclass(category, PlausibilityWarning):
+        if category.__module__.split(".")[0] == "torsionfit":
             print(f"torsionfit {command}: warning: {message}", file=sys.stderr, flush=True)
         else:
             default(message, category, filename, lineno, file, line)
@@ -374,8 +429,10 @@ def _one_line_warnings(command: str):
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.command_line = command_line(argv)
     from ._cache import enable_compilation_cache
 
     from ._threads import single_blas_thread
@@ -385,15 +442,15 @@ def main(argv=None) -> int:
     try:
         # float64 for this call only (main() is called from Python too); one BLAS thread: spinning
         # BLAS threads would take the cores from XLA
-        with single_blas_thread(), float64(), warnings.catch_warnings():
+        with single_blas_thread(), float64(), warnings.catch_warnings(), _progress_log(args.command, args.quiet):
             warnings.showwarning = _one_line_warnings(args.command)
             return args.func(args)
     except InputError as err:
         print(f"torsionfit {args.command}: error: {err}", file=sys.stderr)
         return EXIT_INPUT_ERROR
     except KeyboardInterrupt:
-        print(f"torsionfit {args.command}: interrupted", file=sys.stderr)
-        return 130
+        print(f"torsionfit {args.command}: {_interrupted(args)}", file=sys.stderr, flush=True)
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

@@ -19,6 +19,8 @@ from ._decision import (
     Decision as Decision,
     decide as decide,
     decide_unit as decide_unit,
+    risk_from_draws as risk_from_draws,
+    risk_text as risk_text,
 )
 from ._envelope import (
     Envelope as Envelope,
@@ -26,6 +28,11 @@ from ._envelope import (
     kd_worst_direction as kd_worst_direction,
     operating_envelope as operating_envelope,
     region_kd_min as region_kd_min,
+)
+from ._extrapolation import (
+    ExtrapolationWarning as ExtrapolationWarning,
+    extrapolation as extrapolation,
+    measured_region as measured_region,
 )
 from ._figure import plot_envelope as plot_envelope
 from ._spec import (

@@ -25,41 +25,44 @@ def find_campaigns(folder) -> list[Path]:
     return sorted(Path(folder).rglob(MANIFEST_NAME))
 
 
-def _unit_row(manifest: Path, folder: Path, spec, options, seed, out_dir, figures) -> dict:
+def _unit_row(manifest: Path, folder: Path, spec, options, seed, out_dir, figures, command) -> dict:
     unit = str(manifest.parent.relative_to(folder)) if manifest.parent != folder else "."
     row = {"unit": unit, "campaign": str(manifest)}
     try:
         result = accept_campaign(load_campaign(manifest), spec, options, seed=seed)
-        doc = write_accept(result, Path(out_dir) / unit, figures=figures)
+        doc = write_accept(result, Path(out_dir) / unit, figures=figures, command=command)
     except Exception as err:  # noqa: BLE001 — a production batch must not die on one unit
         return {**row, "decision": ERROR, "reason": error_line(err)}
-    row.update({k: doc[k] for k in ("decision", "p_conform", "consumer_risk", "producer_risk", "reason", "label")})
+    row.update({k: doc[k] for k in ("decision", "p_conform", "consumer_risk", "producer_risk", "risk_is_upper_bound",
+                                     "reason", "label")})
     row.update({f"p_conform[{r['name']}]": r["p_conform"] for r in doc["requirements"]})
     return row
 
 
 @in_float64
 def accept_folder(folder, spec, out_dir, options: FitOptions = FitOptions(), seed: int = 0,
-                  progress=None, figures: bool = True) -> list[dict]:
+                  progress=None, figures: bool = True, command: str | None = None) -> list[dict]:
     """Decide every campaign under ``folder``; each unit's ``accept.json`` goes to
-    ``out_dir/<unit folder>/``; returns one row per unit. ``progress(text)`` is told each unit.
-    InputError when ``folder`` holds no campaign."""
+    ``out_dir/<unit folder>/``; returns one row per unit. ``progress(text)`` is told each unit;
+    ``command`` is recorded in each ``accept.json``. InputError when ``folder`` holds no campaign."""
     folder = Path(folder)
     manifests = find_campaigns(folder)
     if not manifests:
         raise InputError(f"{folder}: no {MANIFEST_NAME} found in this folder or below")
     rows = []
     for i, manifest in enumerate(manifests):
-        rows.append(_unit_row(manifest, folder, spec, options, seed, out_dir, figures))
+        if progress is not None:
+            progress(f"{i + 1}/{len(manifests)} {manifest}: fitting")
+        rows.append(_unit_row(manifest, folder, spec, options, seed, out_dir, figures, command))
         if progress is not None:
             progress(f"{i + 1}/{len(manifests)} {rows[-1]['unit']}: {rows[-1]['decision']}")
     return rows
 
 
 def write_batch_table(rows: list[dict], out_dir, name: str = "accept_batch",
-                      columns: tuple[str, ...] = _COLUMNS) -> tuple[Path, Path]:
+                      columns: tuple[str, ...] = _COLUMNS, provenance: dict | None = None) -> tuple[Path, Path]:
     """``out_dir/<name>.csv`` and ``.json`` (the same rows; ``columns`` first, then every other
-    key sorted); returns both paths."""
+    key sorted; the JSON also holds ``provenance`` when given); returns both paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     extra = sorted({k for row in rows for k in row} - set(columns))
@@ -69,7 +72,7 @@ def write_batch_table(rows: list[dict], out_dir, name: str = "accept_batch",
         writer = csv.DictWriter(handle, fieldnames=columns)
         writer.writeheader()
         writer.writerows({k: ("" if row.get(k) is None else row.get(k)) for k in columns} for row in rows)
-    json_path.write_text(json.dumps({"units": rows}, indent=2))
+    json_path.write_text(json.dumps({"units": rows} | ({"provenance": provenance} if provenance else {}), indent=2))
     return csv_path, json_path
 
 

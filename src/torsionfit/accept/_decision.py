@@ -26,10 +26,23 @@ def decide(p_conform: float, p_accept: float) -> str:
     return INDETERMINATE
 
 
+def risk_from_draws(risk: float, n_draws: int) -> tuple[float, bool]:
+    """(value, is an upper bound) of a risk estimated as a fraction of ``n_draws`` draws: a
+    fraction of 0 is not a risk of 0 but one below the draws' resolution, ``< 1/n_draws``."""
+    return (1.0 / n_draws, True) if risk == 0.0 else (risk, False)
+
+
+def risk_text(risk: float, is_bound: bool, n_draws: int) -> str:
+    """``0.0123``, or ``< 0.00025 (no draw of 4000 fails)`` for a bound."""
+    return f"< {risk:.2g} (no draw of {n_draws} fails)" if is_bound else f"{risk:.3g}"
+
+
 @dataclass(frozen=True)
 class Decision:
     """The decision for one unit. ``consumer_risk`` (1 − p_c) is set for an accepted unit,
-    ``producer_risk`` (p_c) for a rejected one, both None otherwise."""
+    ``producer_risk`` (p_c) for a rejected one, both None otherwise. Both are fractions of
+    ``n_draws`` draws: when no draw fails the risk is reported as the bound 1/``n_draws`` with
+    ``risk_is_bound`` True (the draws cannot resolve a smaller risk; it is not zero)."""
 
     decision: str
     p_conform: float  # joint, all requirements
@@ -40,6 +53,7 @@ class Decision:
     producer_risk: float | None
     reason: str
     n_draws: int
+    risk_is_bound: bool = False
 
 
 def decide_unit(conform: np.ndarray, names, p_accept: float, converged: bool = True,
@@ -71,6 +85,10 @@ def decide_unit(conform: np.ndarray, names, p_accept: float, converged: bool = T
     else:
         reason = (f"joint p_c {p_joint:.4g} between {1 - p_accept:.4g} and {p_accept:g}: retest or measure "
                   f"more (per requirement: {listing})")
+    risk, bound = risk_from_draws(1.0 - p_joint if decision == ACCEPT else p_joint, n)
+    if decision in (ACCEPT, REJECT):
+        who = "consumer" if decision == ACCEPT else "producer"
+        reason += f"; specific {who}'s risk {risk_text(risk, bound, n)}"
     return Decision(decision, p_joint, p_accept, p_each, each,
-                    1.0 - p_joint if decision == ACCEPT else None,
-                    p_joint if decision == REJECT else None, reason, n)
+                    risk if decision == ACCEPT else None, risk if decision == REJECT else None, reason, n,
+                    bound and decision != INDETERMINATE)

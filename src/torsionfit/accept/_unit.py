@@ -1,18 +1,25 @@
 """One unit: fit its campaign, decide against a spec, write ``accept.json`` (DESIGN §5.2)."""
 
 import json
+import logging
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from .._provenance import provenance
 from .._x64 import in_float64
 from ..fit import check_fittable
 from ..report import FitOptions, campaign_model, derived_metrics_for, fit_campaign, summarise
 from ._conformance import conformance, requirement_quantities
 from ._decision import Decision, decide_unit
 from ._envelope import Envelope, envelope_axes, operating_envelope
+from ._extrapolation import ExtrapolationWarning, extrapolation
 from ._spec import Spec, bind_requirements
+
+#: progress lines (INFO); the command line shows them on stderr unless --quiet
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -27,6 +34,8 @@ class UnitAcceptance:
     decision: Decision
     envelopes: tuple[Envelope, ...]
     seed: int
+    #: per requirement: the line saying which conditions the decision extrapolates to, or None
+    extrapolations: tuple = ()
 
 
 @in_float64
@@ -43,8 +52,15 @@ def accept_campaign(campaign, spec: Spec, options: FitOptions = FitOptions(), se
                     envelope: bool = True, fit=None) -> UnitAcceptance:
     """Fit ``campaign`` (``options``, ``seed``) and decide against ``spec``; with ``envelope``,
     also map P(K_d ≥ K_req) over torque × speed for every ``kd`` requirement. ``fit``: a
-    ``CampaignFit`` of this campaign with these options already made (``torsionfit.batch``)."""
+    ``CampaignFit`` of this campaign with these options already made (``torsionfit.batch``).
+    A ``kd`` requirement whose region leaves the measured TE loads or speeds gives an
+    :class:`ExtrapolationWarning` (one line, which conditions) and a note in ``accept.json``."""
     bound, derived = bind_to_campaign(spec, campaign, options)
+    extrapolations = tuple(extrapolation(b.requirement, campaign) for b in bound)
+    for line in filter(None, extrapolations):
+        warnings.warn(line, ExtrapolationWarning, stacklevel=3)  # 3: past the float64 wrapper
+    log.info("%s: %d runs, %d requirements%s", campaign.path or campaign.reducer.name, len(campaign.runs),
+             len(bound), "" if fit is None else "; fitted already")
     fit = fit_campaign(campaign, options, seed=seed) if fit is None else fit
     quantities = requirement_quantities(bound, derived, fit.metric_values, fit.metric_draws)
     d = fit.diagnostics
@@ -59,13 +75,14 @@ def accept_campaign(campaign, spec: Spec, options: FitOptions = FitOptions(), se
                                *envelope_axes(reducer.rated_torque_Nm, max_speed, b.requirement.torque_range_Nm,
                                               b.requirement.speed_range_rpm))
             for b in bound if b.requirement.is_kd)
-    return UnitAcceptance(spec, bound, fit, quantities, decision, envelopes, seed)
+    return UnitAcceptance(spec, bound, fit, quantities, decision, envelopes, seed, extrapolations)
 
 
-def _requirement_entry(b, quantity: np.ndarray, p: float, decision: str) -> dict:
+def _requirement_entry(b, quantity: np.ndarray, p: float, decision: str, extrapolates: str | None) -> dict:
     r = b.requirement
     entry = {
         "name": r.name, "p_conform": p, "decision": decision, "limit": r.limit, "unit": r.unit,
+        "extrapolates": extrapolates,
         "metric": r.metric, "bound": r.bound,
         "limit_in_metric_unit": b.limit_in_metric_unit, "metric_unit": b.metric_unit,
         "posterior": {**summarise(quantity), "unit": b.metric_unit},
@@ -88,8 +105,9 @@ def envelope_json(e: Envelope) -> dict:
     }
 
 
-def accept_json(result: UnitAcceptance) -> dict:
-    """The ``accept.json`` document (DESIGN §5.2)."""
+def accept_json(result: UnitAcceptance, command: str | None = None) -> dict:
+    """The ``accept.json`` document (DESIGN §5.2); ``command``: the command line recorded in
+    its provenance."""
     d, fit = result.decision, result.fit
     campaign = fit.campaign
     return {
@@ -98,9 +116,12 @@ def accept_json(result: UnitAcceptance) -> dict:
         "p_accept": d.p_accept,
         "consumer_risk": d.consumer_risk,
         "producer_risk": d.producer_risk,
+        "risk_is_upper_bound": d.risk_is_bound,
         "reason": d.reason,
-        "requirements": [_requirement_entry(b, q, p, dec) for b, q, p, dec in
-                         zip(result.bound, result.quantities.T, d.requirement_p_conform, d.requirement_decisions)],
+        "extrapolates": [line for line in result.extrapolations if line],
+        "requirements": [_requirement_entry(b, q, p, dec, x) for b, q, p, dec, x in
+                         zip(result.bound, result.quantities.T, d.requirement_p_conform, d.requirement_decisions,
+                             result.extrapolations or (None,) * len(result.bound))],
         "envelope": [envelope_json(e) for e in result.envelopes],
         "campaign": str(campaign.path) if campaign.path else None,
         "label": campaign.notes,
@@ -110,15 +131,16 @@ def accept_json(result: UnitAcceptance) -> dict:
         "n_draws": d.n_draws,
         "seed": result.seed,
         "diagnostics": fit.diagnostics,
+        "provenance": provenance(result.seed, command),
     }
 
 
-def write_accept(result: UnitAcceptance, out_dir, figures: bool = True) -> dict:
+def write_accept(result: UnitAcceptance, out_dir, figures: bool = True, command: str | None = None) -> dict:
     """Write ``out_dir/accept.json`` (and with ``figures`` the envelope maps in
-    ``out_dir/figures/``); return the document."""
+    ``out_dir/figures/``); return the document. ``command``: recorded in its provenance."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    doc = accept_json(result)
+    doc = accept_json(result, command)
     (out / "accept.json").write_text(json.dumps(doc, indent=2))
     if figures and result.envelopes:
         from ._figure import plot_envelope
@@ -135,11 +157,8 @@ def summary_text(doc: dict) -> str:
              f"p_accept {doc['p_accept']:g})"]
     for r in doc["requirements"]:
         lines.append(f"  {r['name']:48s} p_c {r['p_conform']:.4g}  {r['decision']}")
-    if doc["consumer_risk"] is not None:
-        lines.append(f"  specific consumer's risk {doc['consumer_risk']:.3g}")
-    if doc["producer_risk"] is not None:
-        lines.append(f"  specific producer's risk {doc['producer_risk']:.3g}")
-    lines.append(f"  {doc['reason']}")
+    lines.append(f"  {doc['reason']}")  # with the specific risk of an accepted or rejected unit
+    lines += [f"  note: {line}" for line in doc.get("extrapolates", [])]
     if doc.get("label"):
         lines.append(f"  data: {doc['label']}")
     return "\n".join(lines)

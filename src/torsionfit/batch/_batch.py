@@ -8,6 +8,7 @@ from pathlib import Path
 
 from .._x64 import in_float64
 from .._errors import InputError
+from .._provenance import provenance
 from ..accept import EXIT_CODE, batch_exit_code, find_campaigns, write_batch_table
 from ..io._manifest import MANIFEST_NAME
 from ._executor import executor
@@ -120,7 +121,8 @@ def run_batch(folder, out_dir, options: BatchOptions = BatchOptions(), scheduler
             suspects = [packet[0] for packet in again[1:]]
         pending = [t for packet in lost[n_workers + 1:] for t in packet]
     ordered = [rows[t.unit] for t in tasks]
-    write_batch_table(ordered, out_dir, name=TABLE_NAME, columns=tuple(c for c in COLUMNS if any(c in r for r in ordered)))
+    write_batch_table(ordered, out_dir, name=TABLE_NAME, columns=tuple(c for c in COLUMNS if any(c in r for r in ordered)),
+                      provenance=provenance(options.seed, options.command))
     return ordered
 
 

@@ -23,6 +23,7 @@ class BatchOptions:
     figures: bool = False
     group_size: int = 16
     seed: int = 0
+    command: str | None = None  # the command line, recorded in the outputs (not a setting: a re-run keeps units)
 
     def sampler_of(self, unit: str) -> str:
         return EMCEE if unit in self.posterior_units else self.fit.sampler

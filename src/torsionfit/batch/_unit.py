@@ -58,7 +58,7 @@ def finish_unit(task: UnitTask, prepared, map_result, options: BatchOptions, sha
     fit_options = options.fit_options_of(task.unit)
     fit = finish_fit(fitted, fit_options, model, problem, map_result, options.seed, sample_result)
     out = Path(task.out_dir)
-    doc = write_fit(fit, out)
+    doc = write_fit(fit, out, command=options.command)
     d = doc["diagnostics"]
     row = {"unit": task.unit, "status": DONE, "sampler": d["sampler"], "converged": d["converged"],
            "map_converged": d["map_converged"], "reason": d.get("reason", ""), "shape": shape,
@@ -72,7 +72,7 @@ def finish_unit(task: UnitTask, prepared, map_result, options: BatchOptions, sha
         from ..accept import accept_campaign, write_accept
 
         result = accept_campaign(campaign, options.spec, fit_options, seed=options.seed, fit=fit)
-        acc = write_accept(result, out, figures=options.figures)
+        acc = write_accept(result, out, figures=options.figures, command=options.command)
         row.update({k: acc[k] for k in ("decision", "p_conform", "consumer_risk", "producer_risk")})
         row["reason"] = acc["reason"]
         row.update({f"p_conform[{r['name']}]": r["p_conform"] for r in acc["requirements"]})

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._provenance import provenance
 from ..units import ANGLE_UNITS
 from ._loop import Diagnosis
 
@@ -90,11 +91,12 @@ def final_metrics(d: Diagnosis, seed: int = 0) -> dict:
             "metrics": doc["metrics"], "parameters": doc["parameters"]}
 
 
-def write_diagnosis(d: Diagnosis, campaign, out_dir, seed: int = 0) -> dict:
+def write_diagnosis(d: Diagnosis, campaign, out_dir, seed: int = 0, command: str | None = None) -> dict:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     doc = diagnose_json(d, campaign)
     doc["final_metrics"] = final_metrics(d, seed)
+    doc["provenance"] = provenance(seed, command)  # command: the command line that made it
     (out / "diagnose.json").write_text(json.dumps(doc, indent=2))
     write_figures(d, campaign, out / "figures")
     return doc

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from .._x64 import in_float64
 from .._errors import InputError
+from .._provenance import provenance
 from ._document import paper_document
 from ._page import comparison_page
 from ._reproduction import Reproduction
@@ -47,6 +48,7 @@ def run_paper(out_dir, settings: PaperSettings, data_dir=None, progress=None, co
     paths = make_figures(repro, out / "figures")
     doc["figures"] = [str(p.relative_to(out)) for p in paths]
     doc["runtime_s"] = {"total": time.perf_counter() - t0, **repro.timings}
+    doc["provenance"] = provenance(settings.seed, command)
     out.mkdir(parents=True, exist_ok=True)
     (out / "tables.json").write_text(json.dumps(doc, indent=2, ensure_ascii=False))
     write_page(out, command)
