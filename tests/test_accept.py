@@ -14,6 +14,7 @@ import dataclasses
 import json
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import jax.numpy as jnp
 import numpy as np
@@ -33,7 +34,9 @@ from torsionfit.accept import (
     conformance,
     decide,
     decide_unit,
+    extrapolation,
     load_spec,
+    measured_region,
     parse_spec,
     requirement_quantities,
 )
@@ -475,7 +478,11 @@ def test_accept_command_exit_codes_and_accept_json(tmp_path, bench, unit_folder,
     assert doc["decision"] == "accept" and doc["reason"] and "SYNTHETIC" in doc["label"]
     for r in doc["requirements"]:
         assert {"name", "p_conform", "decision", "limit", "unit"} <= set(r)
-    assert doc["consumer_risk"] == pytest.approx(1 - doc["p_conform"]) and doc["producer_risk"] is None
+    # far inside: no draw fails, so the risk is the bound 1/N, not 0
+    assert doc["consumer_risk"] == pytest.approx(max(1 - doc["p_conform"], 1 / doc["n_draws"]))
+    assert doc["risk_is_upper_bound"] == (doc["p_conform"] == 1.0) and doc["producer_risk"] is None
+    assert doc["provenance"]["seed"] == 5 and doc["provenance"]["torsionfit_version"]
+    assert doc["provenance"]["command"].startswith("torsionfit accept ") and "--seed 5" in doc["provenance"]["command"]
     (env,) = doc["envelope"]
     prob = np.array(env["probability"])
     assert prob.shape == (len(env["speed_rpm"]), len(env["torque_Nm"])) and np.all((prob >= 0) & (prob <= 1))
@@ -508,7 +515,9 @@ def test_accept_over_a_folder_writes_one_row_per_unit(tmp_path, bench, capsys):
     spec = _write_spec(tmp_path / "spec.toml", shifted_limits(q, [-0.1] * 3))
     code = main(["accept", str(folder), "--spec", str(spec), "-o", str(tmp_path / "out"), "--sampler", "laplace"])
     assert code == 2
-    rows = json.loads((tmp_path / "out" / "accept_batch.json").read_text())["units"]
+    table = json.loads((tmp_path / "out" / "accept_batch.json").read_text())
+    assert table["provenance"]["seed"] == 0 and table["provenance"]["command"].startswith("torsionfit accept ")
+    rows = table["units"]
     assert [r["unit"] for r in rows] == ["unit-a", "unit-b", "unit-c"]
     assert [r["decision"] for r in rows] == ["accept", "error", "accept"]
     assert broken.name in rows[1]["reason"] and "\n" not in rows[1]["reason"]
@@ -516,3 +525,43 @@ def test_accept_over_a_folder_writes_one_row_per_unit(tmp_path, bench, capsys):
     assert len(csv_lines) == 4 and csv_lines[0].startswith("unit,decision,p_conform")
     assert (tmp_path / "out" / "unit-c" / "accept.json").is_file()
     assert "3 units: 2 accept" in capsys.readouterr().out
+
+
+# --- risks from finite draws, extrapolated decisions -------------------------------------------
+def test_a_risk_no_draw_shows_is_a_bound_not_zero():
+    """4000 draws all in spec: the consumer's risk is < 1/4000 (the draws cannot resolve less),
+    never "0"; all out of spec: the producer's risk likewise; a risk the draws do show is as is."""
+    d = decide_unit(_conform([np.ones(4000)]), ["a"], 0.95)
+    assert d.decision == ACCEPT and d.consumer_risk == pytest.approx(1 / 4000) and d.risk_is_bound
+    assert "consumer's risk < 0.00025 (no draw of 4000 fails)" in d.reason
+    d = decide_unit(_conform([np.zeros(4000)]), ["a"], 0.95)
+    assert d.decision == REJECT and d.producer_risk == pytest.approx(1 / 4000) and d.risk_is_bound
+    assert "producer's risk < 0.00025" in d.reason
+    d = decide_unit(_conform([np.arange(100) < 97]), ["a"], 0.95)
+    assert d.consumer_risk == pytest.approx(0.03) and not d.risk_is_bound and "consumer's risk 0.03" in d.reason
+
+
+def _te_campaign(conditions):
+    """A stand-in campaign: TE runs at (torque N·m, speed rpm)."""
+    runs = tuple(SimpleNamespace(torque_Nm=t, speed_rpm=v) for t, v in conditions)
+    return SimpleNamespace(te_runs=runs)
+
+
+def _kd_requirement(torque, speed):
+    spec = parse_spec({"requirement": [{"metric": "kd", "min": 80.0, "unit": "Nm/arcmin",
+                                        "torque_Nm": torque, "speed_rpm": speed}]})
+    return spec.requirements[0]
+
+
+def test_a_kd_region_beyond_the_measured_conditions_is_named():
+    campaign = _te_campaign([(0.0, 5.0), (100.0, 1.0), (380.0, 1.0), (100.0, 20.0), (380.0, 20.0)])
+    assert measured_region(campaign) == ((100.0, 380.0), (1.0, 20.0))  # the no-load run is the reference
+    assert extrapolation(_kd_requirement([100.0, 380.0], [1.0, 20.0]), campaign) is None
+    line = extrapolation(_kd_requirement([95.0, 380.0], [0.0, 30.0]), campaign)
+    assert "extrapolates" in line and "\n" not in line
+    assert "torque 95–380 N·m asked, measured 100–380 N·m" in line
+    assert "speed 0–30 rpm asked, measured 1–20 rpm" in line
+    only_speed = extrapolation(_kd_requirement([150.0, 300.0], [1.0, 25.0]), campaign)
+    assert "speed" in only_speed and "torque" not in only_speed
+    stiffness = parse_spec({"requirement": [{"metric": "stiffness_rated", "min": 1.0, "unit": "Nm/arcmin"}]})
+    assert extrapolation(stiffness.requirements[0], campaign) is None  # not over a region

@@ -1,13 +1,22 @@
-"""Command line: --help, simulate, metrics, and one-line errors with a non-zero exit."""
+"""Command line: --help, --version, simulate, metrics, one-line errors with a non-zero exit, the
+same --quiet on every command, progress, Ctrl-C, provenance of the JSON outputs."""
 
 import json
+import logging
 import subprocess
 import sys
+import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
-from torsionfit.cli import EXIT_INPUT_ERROR, main
+import torsionfit
+from torsionfit._provenance import command_line
+from torsionfit.accept import ExtrapolationWarning
+from torsionfit.cli import EXIT_INPUT_ERROR, EXIT_INTERRUPTED, _one_line_warnings, build_parser, main
+from torsionfit.sample import run_sampler
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "tests" / "benches" / "rv_small_base.toml"
@@ -71,3 +80,130 @@ def test_bad_manifest_through_the_real_entry_point(tmp_path):
     assert proc.returncode == EXIT_INPUT_ERROR
     assert "Traceback" not in proc.stderr and proc.stderr.count("\n") == 1
     assert "rated_torqe_Nm" in proc.stderr
+
+
+# --- the same options everywhere, --version, provenance -----------------------------------------
+COMMANDS = ("simulate", "metrics", "fit", "diagnose", "accept", "batch", "paper")
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"torsionfit {torsionfit.__version__}"
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_command_has_quiet_and_keeps_no_progress_as_a_hidden_alias(command):
+    parser = build_parser()
+    sub = parser._subparsers._group_actions[0].choices[command]
+    assert "--quiet" in sub.format_help() and "--no-progress" not in sub.format_help()
+    required = {"simulate": ["b.toml", "-o", "x"], "metrics": ["c.toml"], "fit": ["c.toml", "-o", "x"],
+                "diagnose": ["c.toml", "-o", "x"], "accept": ["c.toml", "--spec", "s.toml", "-o", "x"],
+                "batch": ["f", "-o", "x"], "paper": ["-o", "x"]}[command]
+    for flag in ("--quiet", "-q", "--no-progress"):
+        assert parser.parse_args([command, *required, flag]).quiet
+    assert not parser.parse_args([command, *required]).quiet
+
+
+def test_metrics_has_no_seed_it_would_not_use(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["metrics", "c.toml", "--seed", "3"])
+    assert exc.value.code == 2 and "--seed" in capsys.readouterr().err
+
+
+def test_metrics_json_records_version_and_command_line(tmp_path, capsys):
+    main(["simulate", str(BENCH), "-o", str(tmp_path / "c"), "--quiet"])
+    capsys.readouterr()
+    assert main(["metrics", str(tmp_path / "c"), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["provenance"] == {"torsionfit_version": torsionfit.__version__, "seed": None,
+                                 "command": f"torsionfit metrics {tmp_path / 'c'} --json"}
+
+
+def test_command_line_is_quoted_as_a_shell_takes_it_back():
+    assert command_line(["fit", "my campaign/campaign.toml", "--with", "kinematic_error=[1, 2]"]) == \
+        "torsionfit fit 'my campaign/campaign.toml' --with 'kinematic_error=[1, 2]'"
+
+
+# --- progress and Ctrl-C --------------------------------------------------------------------------
+def _gaussian_sampler_inputs(dim=2):
+    problem = SimpleNamespace(dim=dim)
+    start = SimpleNamespace(u=np.zeros(dim), cov=np.eye(dim), names=[f"p{i}" for i in range(dim)])
+    return problem, start
+
+
+def test_emcee_reports_steps_done_and_an_estimate_of_those_left(caplog):
+    problem, start = _gaussian_sampler_inputs()
+    caplog.set_level(logging.INFO, logger="torsionfit")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run_sampler(problem, start, seed=0, n_walkers=8, max_steps=300, check_every=100, min_steps=10_000,
+                    progress=False, evaluate=lambda chunk: -0.5 * np.sum(np.asarray(chunk) ** 2, axis=1))
+    lines = [r.getMessage() for r in caplog.records if r.name == "torsionfit.sample._emcee"]
+    assert len(lines) == 3  # one per check, none converged (min_steps)
+    assert lines[0].startswith("emcee: 100 steps of at most 300; τ_max ≈")
+    assert all("more" in line for line in lines) and lines[-1].endswith("beyond the cap)")
+
+
+def test_ctrl_c_in_the_sampler_is_not_a_page_of_walker_positions(capsys):
+    """emcee's own wrapper printed every walker's position and a traceback on Ctrl-C."""
+    problem, start = _gaussian_sampler_inputs()
+    calls = []
+
+    def evaluate(chunk):
+        calls.append(1)
+        if len(calls) > 5:
+            raise KeyboardInterrupt
+        return -0.5 * np.sum(np.asarray(chunk) ** 2, axis=1)
+
+    with pytest.raises(KeyboardInterrupt):
+        run_sampler(problem, start, seed=0, n_walkers=8, max_steps=100, progress=False, evaluate=evaluate)
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err == ""
+
+
+@pytest.mark.parametrize("extra, says", [
+    (["--save-chain"], "the same command with --resume continues it"),
+    ([], "no chain was kept (--save-chain keeps one that --resume continues)"),
+])
+def test_ctrl_c_during_a_fit_is_one_line_and_exit_130(tmp_path, capsys, monkeypatch, extra, says):
+    import torsionfit.report
+
+    main(["simulate", str(BENCH), "-o", str(tmp_path / "c"), "-q"])
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(torsionfit.report, "fit_campaign", interrupted)
+    capsys.readouterr()
+    assert main(["fit", str(tmp_path / "c"), "-o", str(tmp_path / "f"), *extra]) == EXIT_INTERRUPTED
+    err = capsys.readouterr().err
+    assert err.startswith("[fit] read ")  # progress before the interruption
+    last = err.splitlines()[-1]
+    assert last.startswith("torsionfit fit: interrupted; ") and says in last and "Traceback" not in err
+    assert main(["fit", str(tmp_path / "c"), "-o", str(tmp_path / "f"), "--quiet"]) == EXIT_INTERRUPTED
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_torsionfits_warnings_are_one_line(capsys):
+    show = _one_line_warnings("accept")
+    show(ExtrapolationWarning("'kd': the decision extrapolates the model (speed 0–30 rpm asked)"),
+         ExtrapolationWarning, "x.py", 1)
+    assert capsys.readouterr().err == "torsionfit accept: warning: 'kd': the decision extrapolates the model (speed 0–30 rpm asked)\n"
+
+
+@pytest.mark.slow  # one laplace fit through the command line (compiling it takes a minute on 2 cores)
+def test_fit_shows_progress_on_stderr_and_records_provenance_in_fit_json(tmp_path, capsys):
+    main(["simulate", str(BENCH), "-o", str(tmp_path / "c"), "-q"])
+    capsys.readouterr()
+    argv = ["fit", str(tmp_path / "c"), "-o", str(tmp_path / "f"), "--sampler", "laplace", "--seed", "7"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith("[fit] read ") and "runs" in err[0]
+    assert any(line.startswith("[fit] MAP from 4 starts") for line in err)
+    assert any(line.startswith("[fit] MAP converged") or line.startswith("[fit] MAP not converged") for line in err)
+    doc = json.loads((tmp_path / "f" / "fit.json").read_text())
+    assert doc["provenance"] == {"torsionfit_version": torsionfit.__version__, "seed": 7,
+                                 "command": command_line(argv)}
+    assert main([*argv, "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
