@@ -39,6 +39,7 @@ import numpy as np
 
 import torsionfit  # noqa: F401
 from torsionfit.fit import NoiseOptions, model_inputs
+from torsionfit.fit._misfit import misfit_inflation
 from torsionfit.fit._problem import cycle_amplitude_shape
 from torsionfit.io import decimate, load_campaign
 from torsionfit.metrics._hysteresis import loading_compliance_from_arrays, play_from_arrays
@@ -116,6 +117,13 @@ def validate(unit: str, folder: Path, args) -> dict:
     rng = np.random.default_rng(args.seed)
     pick = rng.choice(len(fit.draws_u), size=min(args.draws, len(fit.draws_u)), replace=False)
     draws = fit.draws_u[pick]
+    inflation = 1.0
+    if args.misfit_inflation:
+        # the Laplace spread widened by the residuals' long-run variance ratio (fit/_misfit.py)
+        inflation = misfit_inflation(problem, fit.map_result.u)
+        n = problem.n_nonlinear
+        draws = draws.copy()
+        draws[:, :n] = fit.map_result.u[:n] + np.sqrt(inflation) * (draws[:, :n] - fit.map_result.u[:n])
     phys = jax.vmap(lambda u: problem.physics_values(u[:problem.n_nonlinear]))(jnp.asarray(draws))
     offsets = jax.vmap(lambda u: problem.full_values(u)["angle_offset"])(jnp.asarray(draws))
     values = {k: np.asarray(v) for k, v in phys.items()}
@@ -148,6 +156,7 @@ def validate(unit: str, folder: Path, args) -> dict:
         "held_out_ramp": last,
         "coverage90_held_out": inside,
         "noise_marginal_arcsec": float(np.max(marginal)) / ARCSEC,
+        "misfit_inflation": inflation,
         "diagnostics": fit.diagnostics,
         "physics_map": {k: float(np.asarray(v)) for k, v in fit.map_result.values.items() if np.ndim(v) == 0},
     }
@@ -332,6 +341,8 @@ def main(argv=None) -> int:
     parser.add_argument("--max-steps", type=int, default=20_000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--iid", action="store_true", help="iid noise instead of AR(1) (for comparison)")
+    parser.add_argument("--misfit-inflation", action="store_true",
+                        help="widen the posterior draws by the long-run variance ratio of the whitened residuals (fit/_misfit.py)")
     parser.add_argument("--cycle-noise", action="store_true",
                         help="noise level scaled by the amplitude of each sample's torque cycle (NoiseOptions.cycle_amplitude_noise)")
     parser.add_argument("--effects", type=json.loads, default=EFFECTS, help=f"model effects as JSON (default {json.dumps(EFFECTS)})")
