@@ -60,7 +60,10 @@ def test_getting_started_manifest_reads_its_export(tmp_path):
 
 # user-facing text names no issue numbers, work sessions or commit hashes
 _HEX = re.compile(r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b")
-_FORBIDDEN = re.compile(r"\bissues?\b|\bsessions?\b|#\d+|\bPR\b|pull request", re.IGNORECASE)
+# (the words alone stay allowed: "issues a warning", "a Python session")
+_FORBIDDEN = re.compile(r"\b(issue|session|PR)s?\s*#?\s*\d+|#\d+|\bpull request|\bthe issue's|"
+                        r"\b(this|that|an earlier|a previous|the previous|the last|a later) (session|issue)\b",
+                        re.IGNORECASE)
 
 
 def _user_facing() -> list[Path]:
