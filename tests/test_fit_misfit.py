@@ -4,10 +4,13 @@ holds and large when the data carry structure the model lacks (SYNTHETIC benches
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from torsionfit.bench import load_bench, simulate
 from torsionfit.fit import build_problem, fit_map
-from torsionfit.fit._misfit import misfit_inflation, misfit_variance_ratio
+import jax.numpy as jnp
+
+from torsionfit.fit._misfit import misfit_inflation, misfit_variance_ratio, widened
 from torsionfit.model import model_with_effects
 
 BENCH = Path(__file__).parent / "benches" / "stat_rv_white.toml"
@@ -26,6 +29,18 @@ def test_white_residuals_leave_the_posterior_as_it_is():
     ratios = misfit_variance_ratio(problem, result.u)
     assert np.all(ratios < 2.5), ratios
     assert misfit_inflation(problem, result.u) == 1.0
+    assert widened(problem, result, 1.0) == (problem, result)  # nothing to widen: the same objects
+    # widened by 4: the likelihood to the power 1/4 (prior and the linear block's term unchanged),
+    # the physics block of the Laplace covariance × 4, the MAP point kept
+    tempered, wide = widened(problem, result, 4.0)
+    u = jnp.asarray(result.u)
+    ll = sum(float(jnp.sum(x)) for x in problem.pointwise_log_likelihood(u))
+    assert float(tempered.log_density(u)) - float(problem.log_density(u)) == \
+        pytest.approx(-0.75 * ll, rel=1e-9, abs=1e-6)
+    n = problem.n_nonlinear
+    assert np.allclose(wide.cov[:n, :n], 4.0 * result.cov[:n, :n])
+    assert np.allclose(wide.cov[n:, n:], result.cov[n:, n:]) and np.array_equal(wide.u, result.u)
+    assert wide.problem is tempered
 
 
 def test_structure_the_model_lacks_widens_it(tmp_path):

@@ -5,6 +5,7 @@ that fails gets an error row; the others go on."""
 
 from .._x64 import in_float64
 from ..fit import fit_map
+from ..fit._misfit import widen_for_misfit
 from ..report import sampler_kwargs
 from ._map_batch import fit_map_batch
 from ._options import EMCEE, BatchOptions
@@ -54,7 +55,11 @@ def fit_group(tasks: list[UnitTask], options: BatchOptions) -> list[dict]:
     keys = [shape_key(prepared[i][3]) if i in prepared else None for i in range(len(tasks))]
     for idx in group_by_shape(keys, options.group_size):  # normally one shape; more in a folder of mixed units
         key = keys[idx[0]]
-        maps = _map_each([prepared[i][3] for i in idx], [[r.name for r in prepared[i][1].runs] for i in idx], options)
+        maps = list(_map_each([prepared[i][3] for i in idx], [[r.name for r in prepared[i][1].runs] for i in idx], options))
+        for k, i in enumerate(idx):  # widened before sampling, as fit_campaign does
+            if not isinstance(maps[k], Exception) and options.fit_options_of(tasks[i].unit).misfit_inflation:
+                problem, maps[k] = widen_for_misfit(prepared[i][3], maps[k])
+                prepared[i] = (*prepared[i][:3], problem)
         samples = _sample_each(tasks, prepared, idx, maps, options)
         for i, map_result in zip(idx, maps):
             try:

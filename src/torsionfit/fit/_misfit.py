@@ -50,3 +50,22 @@ def misfit_inflation(problem, u, n_blocks: int = MISFIT_BLOCKS, alpha: float = M
     ratio = float(np.sum(ratios * counts) / np.sum(counts))
     threshold = chi2.ppf(1.0 - alpha, n_blocks - 1) / (n_blocks - 1)
     return ratio if ratio > threshold else 1.0
+
+
+def widened(problem, map_result, factor: float):
+    """(problem with likelihood power 1/``factor``, map result with the physics block of its
+    Laplace covariance times ``factor``) — the MAP point kept; unchanged for ``factor`` ≤ 1."""
+    if not factor > 1.0:
+        return problem, map_result
+    import dataclasses
+
+    tempered = eqx.tree_at(lambda p: p.likelihood_power, problem, np.float64(1.0 / float(factor)))
+    cov = np.array(map_result.cov, float)
+    n = problem.n_nonlinear
+    cov[:n, :n] *= factor
+    return tempered, dataclasses.replace(map_result, problem=tempered, cov=cov)
+
+
+def widen_for_misfit(problem, map_result):
+    """:func:`widened` by this fit's :func:`misfit_inflation` at its MAP: (problem, map result)."""
+    return widened(problem, map_result, misfit_inflation(problem, map_result.u))

@@ -21,6 +21,7 @@ from .._chunks import map_chunks
 from .._errors import InputError
 from .._provenance import provenance
 from ..fit import NoiseOptions, build_problem, fit_map
+from ..fit._misfit import widen_for_misfit
 from ..io import Campaign, decimate
 from ..model import model_with_effects
 from ..units import ANGLE_UNITS
@@ -56,6 +57,9 @@ class FitOptions:
     metric_draws: int = 2000  # draws used for the derived metrics
     lost_motion_pct: float = 3.0
     decimate: int = 1  # block means of this many samples before fitting (recorded in fit.json)
+    # widen the posterior when the whitened residuals keep structure the model lacks
+    # (long-run variance ratio k > 1 at the MAP: likelihood to the power 1/k, fit/_misfit.py)
+    misfit_inflation: bool = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,6 +151,8 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
     log.info("MAP from %d starts, %d parameters (the first fit of a model shape compiles it first)",
              options.n_starts, problem.dim)
     map_result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed)
+    if options.misfit_inflation:
+        problem, map_result = widen_for_misfit(problem, map_result)
     log.info("MAP %s; now the posterior (%s) and the metrics", "converged" if map_result.converged
              else f"not converged ({map_result.message})", options.sampler)
     return finish_fit(campaign, options, model, problem, map_result, seed)
@@ -303,6 +309,8 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
         }
         pick = rng.choice(len(draws_u), size=min(options.metric_draws, len(draws_u)), replace=False)
     diagnostics["map_converged"] = bool(map_result.converged)
+    # 1: the posterior as the likelihood gives it; k > 1: widened for misfit (fit/_misfit.py)
+    diagnostics["misfit_inflation"] = float(1.0 / problem.likelihood_power)
     diagnostics["map_message"] = map_result.message
 
     derived = derived_metrics_for(campaign, model, options.lost_motion_pct)
