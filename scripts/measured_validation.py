@@ -39,7 +39,6 @@ import numpy as np
 
 import torsionfit  # noqa: F401
 from torsionfit.fit import NoiseOptions, model_inputs
-from torsionfit.fit._misfit import misfit_inflation
 from torsionfit.fit._problem import cycle_amplitude_shape
 from torsionfit.io import decimate, load_campaign
 from torsionfit.metrics._hysteresis import loading_compliance_from_arrays, play_from_arrays
@@ -109,7 +108,8 @@ def validate(unit: str, folder: Path, args) -> dict:
     t0 = time.perf_counter()
     fit = fit_campaign(train, FitOptions(effects=args.effects, sampler=args.sampler, progress=False,
                                          decimate=args.decimate, max_steps=args.max_steps,
-                                         n_starts=args.starts, noise=NoiseOptions(ar1=False if args.iid else None,
+                                         n_starts=args.starts, misfit_inflation=not args.no_misfit_inflation,
+                                         noise=NoiseOptions(ar1=False if args.iid else None,
                                                             cycle_amplitude_noise=args.cycle_noise)),
                        seed=args.seed)
     seconds = time.perf_counter() - t0
@@ -117,13 +117,8 @@ def validate(unit: str, folder: Path, args) -> dict:
     rng = np.random.default_rng(args.seed)
     pick = rng.choice(len(fit.draws_u), size=min(args.draws, len(fit.draws_u)), replace=False)
     draws = fit.draws_u[pick]
-    inflation = 1.0
-    if args.misfit_inflation:
-        # the Laplace spread widened by the residuals' long-run variance ratio (fit/_misfit.py)
-        inflation = misfit_inflation(problem, fit.map_result.u)
-        n = problem.n_nonlinear
-        draws = draws.copy()
-        draws[:, :n] = fit.map_result.u[:n] + np.sqrt(inflation) * (draws[:, :n] - fit.map_result.u[:n])
+    # the posterior is widened by fit_campaign when the residuals keep structure (fit/_misfit.py)
+    inflation = float(fit.diagnostics.get("misfit_inflation", 1.0))
     phys = jax.vmap(lambda u: problem.physics_values(u[:problem.n_nonlinear]))(jnp.asarray(draws))
     offsets = jax.vmap(lambda u: problem.full_values(u)["angle_offset"])(jnp.asarray(draws))
     values = {k: np.asarray(v) for k, v in phys.items()}
@@ -263,10 +258,11 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict) -> st
         f"Measured loops ({SOURCE}). Model: base + {json.dumps(effects)}, "
         f"posterior by {sampler}, fitted to each file without its last large ramp (block means of {decimate} samples). "
         "RMSE in arcsec on the raw samples; held-out = the last large ramp predicted from the rest of the file; "
-        "reference = Prandtl–Ishlinskii + tanh gap by NNLS (benchmarks/pi_reference.py) on the same split.",
+        "reference = Prandtl–Ishlinskii + tanh gap by NNLS (benchmarks/pi_reference.py) on the same split; "
+        "widened × = the posterior covariance factor for structure the residuals keep (long-run variance ratio, 1 = not widened).",
         "",
-        "| unit | in-sample RMSE | held-out RMSE | reference held-out | ratio | 90 % PI coverage | play data (deg) | play model (deg, 95 % HDI) | compliance data (deg/N·m) | compliance model (deg/N·m, 95 % HDI) | converged |",
-        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | --- | --- |",
+        "| unit | in-sample RMSE | held-out RMSE | reference held-out | ratio | 90 % PI coverage | play data (deg) | play model (deg, 95 % HDI) | compliance data (deg/N·m) | compliance model (deg/N·m, 95 % HDI) | widened × | converged |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | --- | ---: | --- |",
     ]
     for r in rows:
         pm, cm = r.get("play_model_deg"), r.get("compliance_model_deg_per_Nm")
@@ -275,7 +271,7 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict) -> st
         cd = np.mean(r["compliance_data_deg_per_Nm"])
         lines.append(
             f"| {r['unit']} | {r['rmse_in_sample_arcsec']:.0f} | {r['rmse_held_out_arcsec']:.0f} | {r['reference']['oos_rest']:.0f} | "
-            f"{r['ratio_held_out']:.2f} | {100 * r['coverage90_held_out']:.0f} % | {r['play_data_deg']:.3f} | {pm_s} | {cd:.4f} | {cm_s} | {r['diagnostics']['converged']} |"
+            f"{r['ratio_held_out']:.2f} | {100 * r['coverage90_held_out']:.0f} % | {r['play_data_deg']:.3f} | {pm_s} | {cd:.4f} | {cm_s} | {r.get('misfit_inflation', 1.0):.1f} | {r['diagnostics']['converged']} |"
         )
     ratios = np.array([r["ratio_held_out"] for r in rows])
     cover = np.array([r["coverage90_held_out"] for r in rows])
@@ -341,13 +337,24 @@ def main(argv=None) -> int:
     parser.add_argument("--max-steps", type=int, default=20_000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--iid", action="store_true", help="iid noise instead of AR(1) (for comparison)")
-    parser.add_argument("--misfit-inflation", action="store_true",
-                        help="widen the posterior draws by the long-run variance ratio of the whitened residuals (fit/_misfit.py)")
+    parser.add_argument("--no-misfit-inflation", action="store_true",
+                        help="the posterior as the likelihood gives it, not widened for structure the residuals keep (fit/_misfit.py)")
     parser.add_argument("--cycle-noise", action="store_true",
                         help="noise level scaled by the amplitude of each sample's torque cycle (NoiseOptions.cycle_amplitude_noise)")
     parser.add_argument("--effects", type=json.loads, default=EFFECTS, help=f"model effects as JSON (default {json.dumps(EFFECTS)})")
+    parser.add_argument("--jobs", type=int, default=1, help="units fitted in this many processes at once")
     parser.add_argument("--table-only", action="store_true", help="re-write validation.md from OUTPUT/validation.json")
     args = parser.parse_args(argv)
+    with torsionfit.float64():  # the script's own JAX calls (predictions, draws) in float64 too
+        return _main(args)
+
+
+def _validate_in_float64(unit: str, args) -> dict:
+    with torsionfit.float64(), tempfile.TemporaryDirectory() as folder:  # manifests naming this machine's paths
+        return validate(unit, Path(folder), args)
+
+
+def _main(args) -> int:
     if args.table_only:
         doc = json.loads((args.output / "validation.json").read_text())
         text = markdown(doc["units"], doc.get("decimate", args.decimate), doc.get("sampler", args.sampler), doc.get("effects", args.effects))
@@ -360,9 +367,16 @@ def main(argv=None) -> int:
     units = args.units or sorted(p.stem for p in EXAMPLES.glob("*.toml"))
     args.output.mkdir(parents=True, exist_ok=True)
     rows = []
-    for unit in units:
-        with tempfile.TemporaryDirectory() as folder:  # manifests naming this machine's paths
-            row = validate(unit, Path(folder), args)
+    if args.jobs > 1:
+        # units in separate processes (one JAX runtime each; the fits are mostly sequential scans)
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            results = pool.map(_validate_in_float64, units, [args] * len(units))
+    else:
+        results = map(_validate_in_float64, units, [args] * len(units))
+    for unit, row in zip(units, results):
         rows.append(row)
         print(f"{unit}: held-out {row['rmse_held_out_arcsec']:.0f}″ (reference {row['reference']['oos_rest']:.0f}″, "
               f"ratio {row['ratio_held_out']:.2f}), coverage {100 * row['coverage90_held_out']:.0f} %, fit {row['seconds_fit']:.0f} s", file=sys.stderr)
