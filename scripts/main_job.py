@@ -12,33 +12,42 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 import paper_tables
 
-import torsionfit  # noqa: F401  (enables float64)
+import torsionfit
 from torsionfit.fit import build_problem, fit_map
 from torsionfit.io import decimate, load_campaign
 from torsionfit.metrics import campaign_metrics, format_metrics_table
 from torsionfit.model import model_with_effects
-from torsionfit.plots import plot_loop_components
+from torsionfit.plots import component_draws, plot_loop_components
 from torsionfit.units import from_si
 
 ROOT = Path(__file__).resolve().parents[1]
 MEASURED = ROOT / "examples" / "cycloidal-jv" / "baseline-pccf-initial-pos1.toml"
+#: parameter draws behind a figure's band
+BAND_DRAWS = 200
 REAL_LOOP_EFFECTS = {"load_dependent_friction": True, "distributed_friction": True, "stiffness_nonlinearity": "power_law",
                      "asymmetry": True}
 
 
-def fit_and_plot(campaign, effects, figure, source, run_index=0):
-    """MAP fit of the campaign's hysteresis runs with ``effects`` switched on; plot one run."""
+def fit_and_plot(campaign, effects, figure, source, run_index=0, seed=0):
+    """MAP fit of the campaign's hysteresis runs with ``effects`` switched on; plot one run with
+    the 95 % band of Laplace draws around the MAP (``seed`` draws them)."""
     hyst = replace(campaign, runs=campaign.hysteresis_runs)
     model = model_with_effects([r.kind for r in hyst.runs], effects, hyst.reducer.rated_torque_Nm,
                                free_friction_start=True)
     t0 = time.perf_counter()
     result = fit_map(build_problem(hyst, model), [r.name for r in hyst.runs], n_starts=3)
     elapsed = time.perf_counter() - t0
-    comps = result.components()
-    drive = result.problem.corrected_inputs(result.u)[run_index].torque_Nm
-    plot_loop_components(hyst.runs[run_index], comps[run_index], source=source, drive_torque_Nm=drive, path=figure)
+    with torsionfit.float64():  # the model evaluated in the fit's precision
+        comps = result.components()
+        drive = result.problem.corrected_inputs(result.u)[run_index].torque_Nm
+        # the band: components of draws from the MAP's Laplace approximation (seeded), every sample
+        u_draws = np.random.default_rng(seed).multivariate_normal(result.u, result.cov, size=BAND_DRAWS, method="eigh")
+        draws = component_draws(result.problem, u_draws, run_index, np.arange(len(hyst.runs[run_index])))
+    plot_loop_components(hyst.runs[run_index], comps[run_index], source=source, drive_torque_Nm=drive, path=figure,
+                         draws=draws, draws_label=f"95 % of {BAND_DRAWS} Laplace draws")
     v = result.values
     stiffness = f"stiffness {from_si(float(v['stiffness']), 'stiffness', 'Nm/arcmin'):.4g} N·m/arcmin, " if "stiffness" in v else ""
     print(f"  MAP ({elapsed:.1f} s, {result.message}): {stiffness}"

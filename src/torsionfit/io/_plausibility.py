@@ -10,9 +10,11 @@ unusual unit is possible, a silent 60× is not acceptable). Thresholds and their
   precision planetary 3–15, budget planetary up to ~40; plastic, 3D-printed and hobby gearing
   — which exists only at small ratings — 1–3°. Plausible: from ``TWIST_MIN_ARCMIN`` up to
   ``TWIST_MAX_ARCMIN``, lowered above ``SOFT_LIMIT_NM`` as √(SOFT_LIMIT_NM / T_r) (a 380 N·m
-  unit may twist 1.5° at most, a 20 N·m one 10°). The band spans 2000×, less than 3600×: a
-  3600× slip of any plausible value always lands outside it; a 60× slip does above ~100 N·m
-  and for the stiffer units below.
+  unit may twist 2.3° at most, a 20 N·m one 10°). The band spans 2000×, less than 3600×: a
+  3600× slip of any plausible value always lands outside it. A 60× slip does when it crosses
+  an end: angles 60× too small for every unit twisting under 18 arcmin, 60× too large for a
+  4.4 arcmin unit from ~100 N·m up (the encoder step check covers the rest when the angles
+  are quantised).
 - **Encoder step**: angles that move in steps of a fixed size are quantised by the encoder; a
   step 20× coarser or finer than the declared ``encoder_resolution_arcsec`` is a unit slip
   (60×, 3600×, 57.3× for rad/deg) or a wrong resolution.
