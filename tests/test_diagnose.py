@@ -14,6 +14,11 @@ Honesty: the effect's parameters are drawn from a seeded generator within a plau
 looking at the results. ``TORSIONFIT_DIAGNOSE_SEED=<n>`` shifts every seed, to rerun the file on
 other draws.
 
+TE-only campaigns: ``te_kinematic.toml`` (six runs, 3600 samples per revolution, noise below
+the encoder step) and ``te_speed.toml`` (ten runs at two loads and 2–12 rpm, for kinematic error
+and speed dependence together). Every campaign is made by a ``*_case`` function returning a
+:class:`Case`; ``scripts/diagnose_zoo.py`` runs the same functions and tabulates the results.
+
 Cost: every campaign has the shape of ``base.toml`` (same run kinds, same run lengths), so the
 base model compiles once per process and each extension once (~20 s per new model shape on an
 idle two-core machine, ~3 s per fit once compiled); the file runs eleven diagnoses in about seven
@@ -24,6 +29,7 @@ import json
 import os
 import re
 import zlib
+from dataclasses import dataclass, replace
 from pathlib import Path
 import tomllib
 
@@ -200,6 +206,27 @@ EFFECT_BENCH = {"speed_dependence": ONE_LOAD}
 KNOWN_FAILURES: dict[str, str] = {}
 
 
+@dataclass(frozen=True)
+class Case:
+    """A SYNTHETIC campaign with what was switched on in it (never in its manifest), and the
+    seed its diagnosis runs with. ``scripts/diagnose_zoo.py`` tabulates the same cases."""
+
+    campaign: object
+    seed: int
+    effects: dict  # the bench's [effects] (or what the test added to the readings)
+    truth: dict  # the parameters drawn for them
+
+
+def effect_case(folder: Path, effect: str) -> Case:
+    """One effect of ``EFFECT_CASES`` switched on in its bench."""
+    rng = np.random.default_rng(_seed("parameters", effect))
+    effects, truth, drop = EFFECT_CASES[effect](rng)
+    campaign, _ = _undeclared_campaign(folder, effects, truth, _seed("noise", effect), drop,
+                                       EFFECT_BENCH.get(effect, BASE))
+    print(effect, truth)
+    return Case(campaign, _seed("diagnose", effect) % 1000, effects, truth)
+
+
 def _check_found(d, effect: str, truth_effects: dict):
     added = [s.effect for s in d.steps]
     assert added, f"nothing added: {_summary(d)}"
@@ -226,49 +253,65 @@ def _check_finite(d):
     for name in EFFECT_CASES
 ])
 def test_diagnose_finds_an_undeclared_effect(tmp_path, effect):
-    rng = np.random.default_rng(_seed("parameters", effect))
-    effects, truth, drop = EFFECT_CASES[effect](rng)
-    campaign, _ = _undeclared_campaign(tmp_path, effects, truth, _seed("noise", effect), drop,
-                                       EFFECT_BENCH.get(effect, BASE))
-    print(effect, truth)
-    d = _diagnose(campaign, _seed("diagnose", effect) % 1000)
-    _check_found(d, effect, effects)
+    case = effect_case(tmp_path, effect)
+    d = _diagnose(case.campaign, case.seed)
+    _check_found(d, effect, case.effects)
 
 
 # --- a clean campaign ------------------------------------------------------------------------
+def clean_case(folder: Path, seed: int) -> Case:
+    campaign, _ = _undeclared_campaign(folder, {}, {}, seed + SEED_SHIFT)
+    return Case(campaign, seed, {}, {})
+
+
 @pytest.mark.parametrize("seed", [3, 1234])
 def test_clean_campaign_adds_nothing(tmp_path, seed):
-    campaign, _ = _undeclared_campaign(tmp_path, {}, {}, seed + SEED_SHIFT)
-    d = _diagnose(campaign, seed)
+    case = clean_case(tmp_path, seed)
+    d = _diagnose(case.campaign, case.seed)
     assert d.steps == [], _summary(d)
     assert not d.unexplained, _summary(d)
     assert d.final.rmse_arcsec <= AT_NOISE
+    _check_finite(d)
 
 
 # --- two effects at once -------------------------------------------------------------------
-def test_two_effects_are_both_found(tmp_path):
+def two_effects_case(folder: Path) -> Case:
+    """Creep and a two-order kinematic error in base.toml."""
     rng = np.random.default_rng(_seed("parameters", "two"))
     e1, t1, _ = _rate_dependence(rng)
     e2, t2, _ = _kinematic_error(rng)
-    campaign, _ = _undeclared_campaign(tmp_path, e1 | e2, t1 | t2, _seed("noise", "two"))
+    campaign, _ = _undeclared_campaign(folder, e1 | e2, t1 | t2, _seed("noise", "two"))
     print(t1 | t2)
-    d = _diagnose(campaign, 7)
+    return Case(campaign, 7, e1 | e2, t1 | t2)
+
+
+def test_two_effects_are_both_found(tmp_path):
+    case = two_effects_case(tmp_path)
+    d = _diagnose(case.campaign, case.seed)
     added = [s.effect for s in d.steps]
     assert set(added) == {"rate_dependence", "kinematic_error"}, _summary(d)
     assert {1, 39} <= set(d.final.effects["kinematic_error"]), _summary(d)
     assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
+    _check_finite(d)
 
 
 # --- an effect outside the catalog -----------------------------------------------------------
-def test_encoder_ripple_is_reported_unexplained(tmp_path):
-    """A sub-division error of the output encoder, periodic in the measured angle: no catalog
-    effect explains it, so nothing may be added and the leftover must be described."""
+def ripple_case(folder: Path) -> Case:
+    """A sub-division error of the output encoder in base.toml (outside the catalog)."""
     rng = np.random.default_rng(_seed("parameters", "ripple"))
     amplitude, period = rng.uniform(2.0, 4.0), rng.uniform(40.0, 90.0)  # ″
     ripple = {"encoder_ripple": {"amplitude_arcsec": amplitude, "period_arcsec": period}}
-    campaign, _ = _undeclared_campaign(tmp_path, ripple, {}, _seed("noise", "ripple"))
+    campaign, _ = _undeclared_campaign(folder, ripple, {}, _seed("noise", "ripple"))
     print(f"ripple {amplitude:.2f}″ every {period:.2f}″")
-    d = _diagnose(campaign, 5)
+    return Case(campaign, 5, ripple, ripple["encoder_ripple"])
+
+
+def test_encoder_ripple_is_reported_unexplained(tmp_path):
+    """A sub-division error of the output encoder, periodic in the measured angle: no catalog
+    effect explains it, so nothing may be added and the leftover must be described."""
+    case = ripple_case(tmp_path)
+    campaign, period = case.campaign, case.truth["period_arcsec"]
+    d = _diagnose(campaign, case.seed)
     assert d.steps == [], f"a catalog effect was forced in: {_summary(d)}"
     assert d.unexplained, _summary(d)
     assert "measured angle" in d.unexplained_description
@@ -298,17 +341,26 @@ TE_BENCH = BENCHES / "te_kinematic.toml"  # six TE runs, 3600 samples per revolu
 TE_NOISE_RMSE = float(np.sqrt(0.4**2 + 1.0 / 12.0))
 
 
+def _kinematic_truth(rng) -> dict:
+    """Orders 1, 2 and 39: a once-per-revolution error, its second harmonic, the pin count."""
+    amp, phase = rng.uniform([15.0, 4.0, 3.0], [30.0, 10.0, 8.0]), rng.uniform(0.0, 2 * np.pi, 3)
+    return {"kin_cos_arcsec": list(amp * np.cos(phase)), "kin_sin_arcsec": list(amp * np.sin(phase))}
+
+
+def te_kinematic_case(folder: Path) -> Case:
+    effects = {"kinematic_error": [1, 2, 39]}
+    truth = _kinematic_truth(np.random.default_rng(_seed("parameters", "te-kinematic")))
+    campaign, _ = _undeclared_campaign(folder, effects, truth, _seed("noise", "te-kinematic"), base=TE_BENCH)
+    print(truth)
+    return Case(campaign, _seed("diagnose", "te-kinematic") % 1000, effects, truth)
+
+
 def test_kinematic_te_campaign_below_the_encoder_step_closes_with_kinematic_error(tmp_path):
     """Orders 1, 2 and 39 in TE runs at three loads, both directions: adding the harmonics takes
     the residual to the noise (below one encoder step), and the comparison that says so is a
     finite number — nothing else is added and nothing is left."""
-    rng = np.random.default_rng(_seed("parameters", "te-kinematic"))
-    amp, phase = rng.uniform([15.0, 4.0, 3.0], [30.0, 10.0, 8.0]), rng.uniform(0.0, 2 * np.pi, 3)
-    truth = {"kin_cos_arcsec": list(amp * np.cos(phase)), "kin_sin_arcsec": list(amp * np.sin(phase))}
-    campaign, _ = _undeclared_campaign(tmp_path, {"kinematic_error": [1, 2, 39]}, truth, _seed("noise", "te-kinematic"),
-                                       base=TE_BENCH)
-    print(truth)
-    d = _diagnose(campaign, _seed("diagnose", "te-kinematic") % 1000)
+    case = te_kinematic_case(tmp_path)
+    d = _diagnose(case.campaign, case.seed)
     assert [s.effect for s in d.steps] == ["kinematic_error"], _summary(d)
     assert {1, 2, 39} <= set(d.final.effects["kinematic_error"]), _summary(d)
     assert d.final.rmse_arcsec <= 1.1 * TE_NOISE_RMSE < 0.1 * d.base.rmse_arcsec, _summary(d)
@@ -319,30 +371,68 @@ def test_kinematic_te_campaign_below_the_encoder_step_closes_with_kinematic_erro
 
 
 # --- a warm-up: drift that saturates ----------------------------------------------------------
+def warm_up_case(folder: Path) -> Case:
+    """base.toml, clean, with a(1 − e^(−t/T)) added to each run's readings before writing."""
+    from torsionfit.io import HysteresisRun
+    from torsionfit.units import ANGLE_UNITS
+
+    (folder / "clean").mkdir()
+    clean, _ = _undeclared_campaign(folder / "clean", {}, {}, _seed("noise", "warm-up"))
+    rng = np.random.default_rng(_seed("parameters", "warm-up"))
+    runs, truth = [], {"amplitude_arcsec": [], "time_constant_s": []}
+    for run in clean.runs:
+        t = np.asarray(run.time_s) - run.time_s[0]
+        a = rng.choice([-1.0, 1.0]) * rng.uniform(4.0, 8.0)
+        tau = rng.uniform(0.1, 0.4) * t[-1]
+        warm = a * ANGLE_UNITS["arcsec"] * (1.0 - np.exp(-t / tau))
+        truth["amplitude_arcsec"].append(float(a))
+        truth["time_constant_s"].append(float(tau))
+        runs.append(replace(run, angle_rad=run.angle_rad + warm) if isinstance(run, HysteresisRun)
+                    else replace(run, te_rad=run.te_rad + warm))
+    campaign = load_campaign(write_campaign(replace(clean, runs=tuple(runs)), folder / "warm",
+                                            label="SYNTHETIC diagnose test campaign (base.toml, readings changed by the test)"))
+    return Case(campaign, _seed("diagnose", "warm-up") % 1000, {"thermal_drift": "warm_up"}, truth)
+
+
 def test_saturating_drift_closes_to_the_noise(tmp_path):
     """Each run of base.toml starts cold: a(1 − e^(−t/T)) added to its readings, T 10–40 % of the
     run, |a| 4–8″ (SYNTHETIC, added to the simulated campaign before it is written). A linear
     drift leaves the bend; the warm-up shape takes the residual to the noise."""
-    from dataclasses import replace
-
-    from torsionfit.io import HysteresisRun
-    from torsionfit.units import ANGLE_UNITS
-
-    (tmp_path / "clean").mkdir()
-    clean, _ = _undeclared_campaign(tmp_path / "clean", {}, {}, _seed("noise", "warm-up"))
-    rng = np.random.default_rng(_seed("parameters", "warm-up"))
-    runs = []
-    for run in clean.runs:
-        t = np.asarray(run.time_s) - run.time_s[0]
-        a = rng.choice([-1.0, 1.0]) * rng.uniform(4.0, 8.0) * ANGLE_UNITS["arcsec"]
-        warm = a * (1.0 - np.exp(-t / (rng.uniform(0.1, 0.4) * t[-1])))
-        runs.append(replace(run, angle_rad=run.angle_rad + warm) if isinstance(run, HysteresisRun)
-                    else replace(run, te_rad=run.te_rad + warm))
-    campaign = load_campaign(write_campaign(replace(clean, runs=tuple(runs)), tmp_path / "warm",
-                                            label="SYNTHETIC diagnose test campaign (base.toml, readings changed by the test)"))
-    d = _diagnose(campaign, _seed("diagnose", "warm-up") % 1000)
+    case = warm_up_case(tmp_path)
+    d = _diagnose(case.campaign, case.seed)
     assert {s.effect for s in d.steps} == {"thermal_drift"}, _summary(d)
     assert d.final.effects["thermal_drift"] == "warm_up", _summary(d)
     assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
+    assert not d.unexplained, _summary(d)
+    _check_finite(d)
+
+
+# --- kinematic error and speed dependence together, TE only ----------------------------------
+TE_SPEED_BENCH = BENCHES / "te_speed.toml"  # ten TE runs: two loads, 2–12 rpm, both directions
+
+
+def kinematic_speed_case(folder: Path, draw: int) -> Case:
+    """Orders 1, 2, 39 and viscous friction 0.2–1.0 N·m/rpm (1–7″ of TE level between 2 and
+    12 rpm against 0.4″ noise) in te_speed.toml; ``draw`` picks the parameters and the noise."""
+    rng = np.random.default_rng(_seed("parameters", "te-speed", draw))
+    truth = _kinematic_truth(rng) | {"viscous_friction_Nm_per_rpm": float(rng.uniform(0.2, 1.0))}
+    effects = {"kinematic_error": [1, 2, 39], "speed_dependence": {"viscous": True, "compliance_order": 0}}
+    campaign, _ = _undeclared_campaign(folder, effects, truth, _seed("noise", "te-speed", draw), base=TE_SPEED_BENCH)
+    print(truth)
+    return Case(campaign, _seed("diagnose", "te-speed", draw) % 1000, effects, truth)
+
+
+@pytest.mark.parametrize("draw", [0, 1])
+def test_kinematic_error_and_speed_dependence_are_both_found(tmp_path, draw):
+    """Both effects in one TE campaign: the harmonics first (the larger signature), then the TE
+    level that changes with speed — a difference between runs, which only a joint test of the
+    runs sees (their zero is shared) — and the residual ends at the noise with nothing left."""
+    case = kinematic_speed_case(tmp_path, draw)
+    d = _diagnose(case.campaign, case.seed)
+    added = [s.effect for s in d.steps]
+    assert set(added) == {"kinematic_error", "speed_dependence"}, _summary(d)
+    assert {1, 2, 39} <= set(d.final.effects["kinematic_error"]), _summary(d)
+    assert d.final.rmse_arcsec <= 1.1 * TE_NOISE_RMSE, _summary(d)
+    assert all(s.delta_elpd > 2 * s.delta_elpd_se > 0 for s in d.steps), _summary(d)
     assert not d.unexplained, _summary(d)
     _check_finite(d)

@@ -21,7 +21,7 @@ import pytest
 
 from torsionfit.diagnose import DiagnoseOptions, diagnose
 
-from test_diagnose import _seed, _summary, _undeclared_campaign
+from test_diagnose import Case, _check_finite, _seed, _summary, _undeclared_campaign
 
 BASE = Path(__file__).parent / "benches" / "friction" / "base.toml"
 RATED = 380.0  # N·m
@@ -51,20 +51,27 @@ def _distributed(rng):
 CASES = {"load_dependent_friction": _load_dependent, "distributed_friction": _distributed}
 
 
-def _run(tmp_path, label, effects, truth, drop, seed):
-    campaign, _ = _undeclared_campaign(tmp_path, effects, truth, _seed("noise", label, seed), drop, BASE)
+def friction_case(folder: Path, effect: str | None, seed: int) -> Case:
+    """``effect`` (None: nothing) switched on in base.toml, parameters and noise from ``seed``."""
+    label = effect or "clean"
+    effects, truth, drop = CASES[effect](np.random.default_rng(_seed("parameters", effect, seed))) if effect else ({}, {}, ())
+    campaign, _ = _undeclared_campaign(folder, effects, truth, _seed("noise", label, seed), drop, BASE)
     print(label, truth)
-    d = diagnose(campaign, DiagnoseOptions(), seed=_seed("diagnose", label, seed) % 1000)
+    return Case(campaign, _seed("diagnose", label, seed) % 1000, effects, truth)
+
+
+def _run(tmp_path, effect, seed):
+    case = friction_case(tmp_path, effect, seed)
+    d = diagnose(case.campaign, DiagnoseOptions(), seed=case.seed)
     print(_summary(d))
+    _check_finite(d)
     return d
 
 
 @pytest.mark.parametrize("seed", SEEDS)
 @pytest.mark.parametrize("effect", list(CASES))
 def test_diagnose_finds_undeclared_friction(tmp_path, effect, seed):
-    rng = np.random.default_rng(_seed("parameters", effect, seed))
-    effects, truth, drop = CASES[effect](rng)
-    d = _run(tmp_path, effect, effects, truth, drop, seed)
+    d = _run(tmp_path, effect, seed)
     assert d.base.rmse_arcsec > AT_NOISE, _summary(d)  # the effect is there to be found
     added = [s.effect for s in d.steps]
     assert added == [effect], _summary(d)
@@ -72,6 +79,7 @@ def test_diagnose_finds_undeclared_friction(tmp_path, effect, seed):
     assert step.delta_elpd > 0 and step.delta_elpd > 2 * step.delta_elpd_se, _summary(d)
     assert d.final.rmse_arcsec < d.base.rmse_arcsec, _summary(d)
     assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
+    assert not d.unexplained, _summary(d)  # at the noise after its extension: nothing is left to report
     if effect == "load_dependent_friction":
         # the missing μ leaves a residual far above the noise: the fit with it removes most of it
         assert d.final.rmse_arcsec <= 0.7 * d.base.rmse_arcsec, _summary(d)
@@ -79,7 +87,7 @@ def test_diagnose_finds_undeclared_friction(tmp_path, effect, seed):
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_clean_friction_campaign_adds_neither(tmp_path, seed):
-    d = _run(tmp_path, "clean", {}, {}, (), seed)
+    d = _run(tmp_path, None, seed)
     assert d.steps == [], _summary(d)
     last = {ev.effect: ev for ev in d.signatures[-1]}
     for name in CASES:

@@ -309,9 +309,8 @@ def _friction_score(ctx: FitContext, name: str, alt, extra: dict, columns, descr
             views.append(run)
             cols.append(None)
             continue
-        own = _span(_columns(jac[i]))
-        design = np.concatenate([run.design, own], axis=1) if own.size else run.design
-        views.append(replace(run, design=design))
+        # spanned per run (not aligned across runs): the run's own nuisance columns
+        views.append(replace(run, local_design=_span(_columns(jac[i]))))
         cols.append(columns(np.asarray(pred[i]), np.asarray(alt_pred[i]), {k: np.asarray(v) for k, v in alt_jac[i].items()}))
     return regression_evidence(name, views, cols, description, details)
 

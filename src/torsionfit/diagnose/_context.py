@@ -30,9 +30,11 @@ class RunView:
     direction: float  # TE runs: ±1; 0 for hysteresis
     loading_rate_Nm_per_s: float | None
     sensitivity: np.ndarray  # dθ̂/dτ̂ along the run (rad/N·m), for torque-offset signatures
-    design: np.ndarray  # the fit's linear design (offsets, drift, harmonics): nuisance columns
+    design: np.ndarray  # the fit's linear design (offsets, drift, harmonics): nuisance columns, one per
+    # linear parameter in the same order in every run (a parameter shared by runs, like the TE zero, is one column)
     eiv_var: np.ndarray  # the fit's errors-in-variables variance per sample, rad²
     floor: float  # the encoder's quantisation floor, rad
+    local_design: np.ndarray | None = None  # nuisance columns of this run alone (a signature's own additions)
 
     def renoised(self, residual: np.ndarray) -> "RunView":
         """This view with its measurement noise re-estimated (``variogram_noise``) from

@@ -46,27 +46,60 @@ def log10_chi2_sf(x: float, k: int) -> float:
     return float(((s - 1) * np.log(y) - y - float(gammaln(s))) / np.log(10))
 
 
+#: a regressor whose norm falls below this share of its norm by projecting out the nuisance
+#: columns lies in their span: what is left is rounding, not a direction to test
+_VANISHED = 1e-8
+
+
+def _basis(a: np.ndarray) -> np.ndarray:
+    """Orthonormal columns spanning the column space of ``a`` (rank-revealing: a QR of dependent
+    columns would add arbitrary directions and project out more than the nuisance)."""
+    norms = np.linalg.norm(a, axis=0)
+    a = a[:, norms > 0] / norms[norms > 0]
+    if not a.shape[1]:
+        return a
+    u, sv, _ = np.linalg.svd(a, full_matrices=False)
+    return u[:, sv > 1e-10 * sv[0]]
+
+
+def _block_diagonal(blocks: list) -> np.ndarray:
+    out = np.zeros((sum(b.shape[0] for b in blocks), sum(b.shape[1] for b in blocks)))
+    i = j = 0
+    for b in blocks:
+        out[i:i + b.shape[0], j:j + b.shape[1]] = b
+        i, j = i + b.shape[0], j + b.shape[1]
+    return out
+
+
 def regression_evidence(effect: str, runs, columns, description: str, details=None) -> Evidence:
     """Δχ² of ``columns`` (list per run: (N_r, k) arrays, or None to skip a run) on the whitened
-    residuals of ``runs``, after projecting out each run's nuisance design."""
-    ws, xs = [], []
+    residuals of ``runs``, after projecting out the nuisance: the fit's linear design jointly over
+    the runs tested — a parameter shared by runs (the TE zero, the kinematic harmonics) is one
+    column for all of them; projected run by run it would remove every difference between the
+    runs' levels, e.g. a TE level that changes with speed — and each run's ``local_design``."""
+    ws, xs, shared, local = [], [], [], []
     for run, cols in zip(runs, columns):
         if cols is None:
             continue
-        cols = np.asarray(cols, float).reshape(len(run.residual), -1)
-        w = run.whiten(run.residual)
-        x = run.whiten(cols)
-        nuisance = run.whiten(run.design[:, np.any(run.design != 0, axis=0)]) if run.design.size else None
-        if nuisance is not None and nuisance.shape[1]:
-            q, _ = np.linalg.qr(nuisance)
-            x = x - q @ (q.T @ x)
-        ws.append(w)
-        xs.append(x)
+        n = len(run.residual)
+        ws.append(run.whiten(run.residual))
+        xs.append(run.whiten(np.asarray(cols, float).reshape(n, -1)))
+        shared.append(run.whiten(run.design) if run.design.size else np.zeros((n, run.design.shape[1])))
+        own = run.local_design
+        local.append(run.whiten(own) if own is not None and own.size else np.zeros((n, 0)))
     if not xs:
         return Evidence(effect, 0.0, 0, 0.0, 0.0, description + " (not applicable: no run shows it)", details or {})
+    if len({s.shape[1] for s in shared}) > 1:
+        raise ValueError(f"{effect}: the runs tested together have designs of different widths "
+                         f"{sorted({s.shape[1] for s in shared})}; a run's own columns belong in local_design")
     w = np.concatenate(ws)
     x = np.concatenate(xs, axis=0)
-    keep = np.linalg.norm(x, axis=0) > 1e-12 * max(1.0, np.linalg.norm(x))
+    nuisance = np.concatenate([np.concatenate(shared, axis=0), _block_diagonal(local)], axis=1)
+    before = np.linalg.norm(x, axis=0)
+    if nuisance.shape[1]:
+        q = _basis(nuisance)
+        x = x - q @ (q.T @ x)
+    keep = np.linalg.norm(x, axis=0) > _VANISHED * np.maximum(before, 1e-300)
     x = x[:, keep]
     if not x.shape[1]:
         return Evidence(effect, 0.0, 0, 0.0, 0.0, description + " (regressors vanish)", details or {})
