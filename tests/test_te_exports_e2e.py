@@ -155,16 +155,19 @@ def test_fit_json_runs_name_the_temperatures(export):
 
 @pytest.mark.slow
 def test_declared_export_fit_recovers_the_stiffness(export):
-    """The declared export, fitted with the kinematic harmonics (NUTS): stiffness within 3 % of
-    the truth and inside the 95 % HDI, converged; each test's zero comes back; K_d of the model
-    (against the no-load reference) is the stiffness in both directions; fit.json names the
+    """The declared export, fitted with the kinematic harmonics (Laplace: a NUTS run of this
+    campaign did not finish within 25 minutes on a loaded two-core machine): stiffness within
+    3 % of the truth and inside the 95 % HDI, the MAP converged; each test's zero comes back; K_d of the model
+    (against the no-load reference) is the truth's in both directions; fit.json names the
     runs' temperatures (25 and 40 °C, fitted together: no temperature term)."""
     from torsionfit.report import FitOptions, fit_campaign, fit_json
 
-    _, _, manifest = export
+    _, sim, manifest = export
     campaign = load_campaign(manifest)
-    fit = fit_campaign(campaign, FitOptions(sampler="nuts", n_starts=2, metric_draws=400, progress=False,
-                                            effects={"kinematic_error": [1, 2, 39]}), seed=1)
+    derived = derived_metrics_for(campaign, sim.model)
+    truth = dict(zip((s.name for s in derived.specs), np.asarray(derived.evaluate(sim.truth))))
+    fit = fit_campaign(campaign, FitOptions(sampler="laplace", n_starts=2, laplace_draws=2000, metric_draws=400,
+                                            progress=False, effects={"kinematic_error": [1, 2, 39]}), seed=1)
     doc = json.loads(json.dumps(fit_json(fit)))
     assert doc["diagnostics"]["converged"], doc["diagnostics"]
     assert doc["temperatures_C"] == [25.0, 40.0] and doc["runs"]["TE_486rpm_1000Nm_25C-fw"]["temperature_C"] == 25.0
@@ -174,9 +177,11 @@ def test_declared_export_fit_recovers_the_stiffness(export):
     assert k["hdi95"][0] <= K <= k["hdi95"][1], k
     offsets = np.asarray(fit.map_result.values["te_offset"]) / ARCMIN
     np.testing.assert_allclose(offsets - offsets[0], np.asarray(SHIFTS_ARCMIN) - SHIFTS_ARCMIN[0], atol=0.05)
-    for way in ("fw", "bw"):
-        kd = doc["metrics"][f"kd_mean[TE_486rpm_1000Nm_40C-{way}]"]
-        assert kd["mean"] == pytest.approx(K, rel=0.03) and kd["hdi95"][0] <= K <= kd["hdi95"][1]
+    for way in ("fw", "bw"):  # the truth's K_d against no load (the gap's pre-load makes it ≠ K)
+        name = f"kd_mean[TE_486rpm_1000Nm_40C-{way}]"
+        kd, true_kd = doc["metrics"][name], truth[name]
+        assert true_kd == pytest.approx(K, rel=0.003)
+        assert kd["mean"] == pytest.approx(true_kd, rel=0.03) and kd["hdi95"][0] <= true_kd <= kd["hdi95"][1], kd
 
 
 @pytest.mark.slow
