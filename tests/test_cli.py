@@ -181,6 +181,8 @@ def test_ctrl_c_during_a_fit_is_one_line_and_exit_130(tmp_path, capsys, monkeypa
     assert err.startswith("[fit] read ")  # progress before the interruption
     last = err.splitlines()[-1]
     assert last.startswith("torsionfit fit: interrupted; ") and says in last and "Traceback" not in err
+    # the chain's folder exists before the sampler writes its first step into it
+    assert (tmp_path / "f").is_dir() == bool(extra)
     assert main(["fit", str(tmp_path / "c"), "-o", str(tmp_path / "f"), "--quiet"]) == EXIT_INTERRUPTED
     assert capsys.readouterr().err.count("\n") == 1
 

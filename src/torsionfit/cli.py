@@ -134,6 +134,8 @@ def _cmd_fit(args) -> int:
     )
     say = _say(args)  # progress once the input is known good: bad input is one line
     say(f"read {args.campaign}: " + _campaign_line(campaign) + f"; sampler {args.sampler}")
+    if options.backend_path is not None:
+        out.mkdir(parents=True, exist_ok=True)  # the chain is written there from the first step
     fit = fit_campaign(campaign, options, seed=args.seed)
     say(f"writing {out}")
     doc = write_fit(fit, out, command=args.command_line)
