@@ -251,8 +251,9 @@ def _interrupted(args) -> str:
     if args.command == "fit":
         if args.save_chain or args.resume:
             out = Path(args.output)
-            return (f"interrupted; the chain so far is kept in {out / 'chain.h5'} (emcee) or "
-                    f"{out / 'chain-nuts.npz'} (NUTS): the same command with --resume continues it")
+            files = {"emcee": f"{out / 'chain.h5'}", "nuts": f"{out / 'chain-nuts.npz'}"}
+            where = files.get(args.sampler) or f"{files['emcee']} (emcee) or {files['nuts']} (NUTS)"
+            return f"interrupted; the chain so far is kept in {where}: the same command with --resume continues it"
         return "interrupted; no chain was kept (--save-chain keeps one that --resume continues)"
     if args.command == "batch":
         return "interrupted; units already done keep their files: the same command skips them and does the rest"
