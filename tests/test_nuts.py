@@ -140,6 +140,21 @@ def test_auto_rule_names_the_budget():
     assert "τ_max = 785" in why and "39250" in why and "20000" in why
 
 
+def test_auto_rule_follows_the_trend_of_the_tau_estimate():
+    """τ_max growing in proportion to the chain (unresolved; data/paper-small's first checks)
+    leaves emcee at the second check; a τ that settles, or grows slowly enough to reach 50 τ
+    within the budget, stays with emcee."""
+    def calls(taus, budget=20_000):
+        rule = auto_switch_rule(budget)
+        return [rule(500 * (i + 1), np.array([1.0, t])) for i, t in enumerate(taus)]
+
+    first, second = calls([61.3, 133.4])
+    assert first is None and "as steps^1.12" in second and "never" in second and "20000" in second
+    assert calls([6.3, 6.5, 6.6]) == [None, None, None]
+    assert calls([45.0, 55.0, 60.0]) == [None, None, None]  # 50 τ(n) reached after ~4000 steps
+    assert "only after about" in calls([45.0, 55.0], budget=3000)[1]
+
+
 def test_auto_keeps_emcee_where_it_converges_and_switches_where_it_cannot():
     problem, start, *_ = _toy()
     res, used, why = sample_posterior(problem, start, FitOptions(sampler="auto", progress=False), seed=0)

@@ -180,16 +180,41 @@ def nuts_kwargs(options: FitOptions, seed: int) -> dict:
 def auto_switch_rule(max_steps: int, tau_factor: float = 50.0):
     """The rule of ``--sampler auto``, called by emcee at every check with (steps so far, τ
     per parameter): a reason to leave emcee for NUTS when the chain it needs —
-    ``tau_factor`` · τ_max steps, τ estimated on the chain so far (an estimate that grows
-    with the chain, so the rule errs on emcee's side) — is longer than the step budget."""
+    ``tau_factor`` · τ_max steps — is longer than the step budget, by either of
+
+    - the estimate now: ``tau_factor`` · τ_max > ``max_steps`` (τ estimated on the chain so far,
+      an estimate that grows with the chain, so this errs on emcee's side);
+    - the estimate's trend over the last two checks: while a chain is much shorter than τ, the
+      estimate grows about in proportion to the chain (measured on data/paper-small: τ_max ≈
+      61, 133, 205, 271 at 500, 1000, 1500, 2000 steps, then past the budget at 3500). Along
+      the power law through the two checks, τ(n) = τ_k (n / n_k)^p, the chain reaches
+      ``tau_factor`` · τ(n) at n* = (``tau_factor`` τ_k / n_k^p)^(1 / (1 − p)), or never when
+      p ≥ 1; the rule leaves when n* is beyond the budget. A resolved τ hardly grows (p near
+      0: n* is about ``tau_factor`` τ_k), so a chain that converges within the budget stays."""
+    last = {}
+
     def rule(n_steps: int, tau: np.ndarray) -> str | None:
         tau_max = float(np.max(tau))
         need = tau_factor * tau_max
+        prev = last.copy()
+        last.update(n=n_steps, tau=tau_max)
         if need > max_steps:
             what = "never moved" if not np.isfinite(tau_max) else f"τ_max = {tau_max:.0f} steps"
             return (f"emcee after {n_steps} steps: {what}, so convergence needs "
                     f"{tau_factor:g} × τ_max = {need:.0f} steps, more than the budget of {max_steps}")
-        return None
+        if not prev or n_steps <= prev["n"] or not 0 < prev["tau"] < tau_max:
+            return None
+        power = math.log(tau_max / prev["tau"]) / math.log(n_steps / prev["n"])
+        if power < 1.0:
+            n_star = (need / n_steps**power) ** (1.0 / (1.0 - power))
+            if n_star <= max_steps:
+                return None
+            reach = f"only after about {n_star:.0f} steps"
+        else:
+            reach = "never"
+        return (f"emcee after {n_steps} steps: τ_max grew from {prev['tau']:.0f} to {tau_max:.0f} steps since "
+                f"step {prev['n']} (as steps^{power:.2f}), so along that trend the chain reaches "
+                f"{tau_factor:g} × τ_max {reach}, beyond the budget of {max_steps}")
 
     return rule
 
