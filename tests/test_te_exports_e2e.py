@@ -198,3 +198,13 @@ def test_diagnose_adds_the_kinematic_error_and_closes_to_the_noise(export):
     noise = math.sqrt(0.4**2 + 1 / 12)
     assert d.final.rmse_arcsec <= 1.1 * noise < 0.2 * d.base.rmse_arcsec
     assert not d.unexplained
+
+
+def test_simulate_command_writes_the_export_layout(tmp_path, capsys):
+    from torsionfit.cli import main
+
+    assert main(["simulate", str(BENCH), "-o", str(tmp_path / "export")]) == 0
+    assert "bench-export layout" in capsys.readouterr().out
+    campaign = load_campaign(tmp_path / "export" / "campaign.toml")  # declared: reads back
+    assert campaign.te_runs and not campaign.hysteresis_runs
+    assert len(campaign.te_zero_groups) > 1  # one zero per test, as the export re-zeroes

@@ -26,6 +26,13 @@ def _cmd_simulate(args) -> int:
     bench = load_bench(args.bench)
     _say(args)(f"read {args.bench}: simulating {bench.label}")
     sim = simulate(bench, seed=args.seed)
+    if bench.te_export is not None:
+        # a bench with [te_export] writes a TE bench's own export layout (side-by-side fw/bw files)
+        from .bench import write_te_export
+
+        manifest = write_te_export(sim, bench, args.output)
+        print(f"wrote {manifest} ({len(sim.campaign.runs)} TE runs in the bench-export layout, {bench.label})")
+        return 0
     manifest = write_campaign(sim.campaign, args.output, label=bench.label, bench_file=bench.path)
     print(f"wrote {manifest} ({len(sim.campaign.runs)} runs, {bench.label})")
     return 0
