@@ -4,6 +4,7 @@ inconsistencies, the operating grid, and the command end to end with its quick s
 Every dataset here is SYNTHETIC: hand-made polynomials, or the bundled campaigns' virtual
 benches (data/paper-*/bench.toml)."""
 
+import dataclasses
 import json
 import os
 import subprocess
@@ -154,3 +155,57 @@ def test_paper_command_end_to_end_quick(tmp_path):
     for c in doc["inconsistencies"]:
         assert c["title"] in page and c["confirmed"]
     assert "5122.587" in page and "2.0128" in page
+
+
+# --- the posterior behind the paper's numbers: sampled within a budget, else Laplace ----------
+BENCHES = Path(__file__).resolve().parent / "benches"
+
+
+def _tiny_campaign(tmp_path):
+    """The small SYNTHETIC base-model bench at 0.5 Hz (one loop, a few hundred samples)."""
+    from torsionfit.bench import simulate
+
+    path = tmp_path / "bench.toml"
+    path.write_text((BENCHES / "rv_small_base.toml").read_text().replace("sample_rate_Hz = 5.0", "sample_rate_Hz = 0.5"))
+    return simulate(load_bench(path), seed=0).campaign
+
+
+def test_paper_fit_falls_back_to_laplace_when_the_sampler_does_not_converge_within_its_budget(tmp_path):
+    """emcee with a 100-step budget cannot reach 50 τ_max: the paper's fit is the Laplace
+    approximation of the same MAP, and tables.json's fit entry, the page and the printed line
+    say so, with the sampler's own diagnostics kept."""
+    from torsionfit.paper import fit_with_fallback, posterior_line
+    from torsionfit.paper._document import _fit_entry
+    from torsionfit.paper._page import _fits_section
+    from torsionfit.report import FitOptions
+
+    options = FitOptions(sampler="emcee", max_steps=100, n_starts=1, progress=False, metric_draws=200,
+                         laplace_draws=400)
+    fit = fit_with_fallback(_tiny_campaign(tmp_path), options, seed=0)
+    d = fit.diagnostics
+    assert d["posterior"] == "laplace" and d["sampler"] == "laplace"
+    assert d["posterior_reason"].startswith("emcee did not converge within its budget (emcee ≤ 100 steps)")
+    attempt = d["sampled_attempt"]
+    assert attempt["sampler"] == "emcee" and attempt["converged"] is False and attempt["n_steps"] == 100
+    assert "not converged after 100 steps" in attempt["reason"]
+    assert fit.draws_u.shape == (400, fit.problem.dim) and fit.sample_result is None
+    entry = _fit_entry(fit)
+    assert entry["posterior"] == "laplace" and entry["posterior_reason"] == d["posterior_reason"]
+    assert "Laplace approximation" in "\n".join(_fits_section({"fits": {"tiny": entry}}))
+    line = posterior_line({"tiny": entry})
+    assert line == "posteriors: tiny Laplace (emcee not converged within its budget)"
+
+
+@pytest.mark.slow
+def test_paper_fit_uses_the_sampled_posterior_when_it_converges(tmp_path):
+    """NUTS with the paper's budget converges on the tiny SYNTHETIC campaign: its draws are kept."""
+    from torsionfit.paper import FULL, fit_with_fallback, posterior_line
+    from torsionfit.paper._document import _fit_entry
+
+    options = dataclasses.replace(FULL, sampler="nuts", n_starts=1, metric_draws=200).fit_options({}, "tiny")
+    fit = fit_with_fallback(_tiny_campaign(tmp_path), options, seed=0)
+    d = fit.diagnostics
+    assert d["posterior"] == "sampled" and d["sampler"] == "nuts" and d["converged"] and "sampled_attempt" not in d
+    assert d["posterior_reason"].startswith("nuts converged within its budget")
+    assert d["rhat_max"] <= 1.01 and d["ess_min"] >= 400 and d["n_divergent"] == 0
+    assert posterior_line({"tiny": _fit_entry(fit)}).startswith("posteriors: tiny sampled (nuts, R̂ max")

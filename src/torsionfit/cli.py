@@ -235,7 +235,7 @@ def _cmd_batch(args) -> int:
 
 
 def _cmd_paper(args) -> int:
-    from .paper import paper_settings, run_paper
+    from .paper import paper_settings, posterior_line, run_paper
 
     say = _say(args)
     command = " ".join(["torsionfit paper -o DIR"] + (["--quick"] if args.quick else []) + ([f"--seed {args.seed}"] if args.seed else [])
@@ -243,6 +243,7 @@ def _cmd_paper(args) -> int:
     doc = run_paper(args.output, paper_settings(args.quick, args.seed, args.sampler), args.data, say, command)
     print(f"max deviation from the published tables {100 * doc['max_relative_deviation']:.3f} %; "
           f"wrote {args.output / 'tables.json'}, {args.output / 'README.md'}, {len(doc['figures'])} figure files")
+    print(posterior_line(doc["fits"]))
     return 0
 
 
@@ -414,8 +415,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="quick settings: Laplace approximation, slowest loop only, decimated, small grid (tests)")
     _add_seed(p)
     _add_sampler(p, default=None, choices=("laplace", "emcee", "nuts", "auto"),
-                 help="posterior of the fits: the MAP's Laplace approximation (default), emcee (hours on 2 cores), "
-                      "nuts or auto (as for fit); the page's fit table names the sampler each fit used")
+                 help="posterior of the fits: auto (default without --quick, as for fit), emcee or nuts within the "
+                      "paper's budget, the MAP's Laplace approximation where that does not converge; laplace (default "
+                      "with --quick) always. tables.json, the page and the last printed line say which each fit used")
     p.add_argument("--data", type=Path, default=None, help="folder holding paper-small/ and paper-large/ (default: the checkout's data/)")
     p.set_defaults(func=_cmd_paper)
     for p in sub.choices.values():

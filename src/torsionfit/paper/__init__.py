@@ -3,6 +3,7 @@ the published values and the paper's inconsistencies, Tables 4 and 6 by the pape
 evaluation with model HDIs, the generalised polynomial H of Eqs. (26)–(28), the operating
 grid, the worn unit of Fig. 19, every figure, ``tables.json`` and the comparison page."""
 
+from ._choice import fit_with_fallback as fit_with_fallback, posterior_line as posterior_line
 from ._checks import Inconsistency as Inconsistency, inconsistencies as inconsistencies
 from ._document import paper_document as paper_document
 from ._fault import worn_bench as worn_bench

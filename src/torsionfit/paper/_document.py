@@ -52,7 +52,10 @@ def _decision_entry(decision) -> dict:
 
 
 def _fit_entry(fit) -> dict:
+    d = fit.diagnostics
     return {"runs": [r.name for r in fit.campaign.runs], "effects": fit.options.effects,
+            "posterior": d.get("posterior", "sampled" if d["sampler"] != "laplace" else "laplace"),
+            "posterior_reason": d.get("posterior_reason", ""),
             "decimate": fit.options.decimate, "diagnostics": fit.diagnostics,
             "rmse_arcsec": fit.rmse_arcsec, "label": fit.campaign.notes}
 

@@ -14,7 +14,7 @@ from ..accept import accept_campaign, bind_to_campaign, operating_envelope, pars
 from ..bench import load_bench, simulate
 from ..io import load_campaign
 from ..metrics import campaign_metrics
-from ..report import fit_campaign
+from ._choice import fit_with_fallback
 from ._fault import worn_bench
 from ._grid import grid_axes, simulate_grid
 from ._polynomial import select_polynomial
@@ -96,9 +96,11 @@ class Reproduction:
         return effects
 
     def _fit(self, campaign, options_name: str, tag: str):
-        """Fit ``campaign`` with the model of bundled campaign ``options_name`` (:meth:`model_effects`)."""
+        """Fit ``campaign`` with the model of bundled campaign ``options_name`` (:meth:`model_effects`):
+        the sampled posterior when the settings' sampler converges within its budget, else the
+        Laplace approximation (:func:`fit_with_fallback`)."""
         options = self.settings.fit_options(self.model_effects(options_name), options_name, self.show_progress)
-        return fit_campaign(self.fitted_runs(campaign), options, seed=derived_seed(self.settings.seed, tag))
+        return fit_with_fallback(self.fitted_runs(campaign), options, seed=derived_seed(self.settings.seed, tag))
 
     def fit(self, name: str):
         """The model fitted to campaign ``name``; the model's extensions are the bench's effects."""
