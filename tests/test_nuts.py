@@ -133,6 +133,22 @@ def test_noise_coordinates_round_trip_with_their_log_jacobian():
     assert np.array_equal(ident.to_u(x)[0], x) and float(ident.to_u(x)[1]) == 0.0
 
 
+def test_whitening_follows_the_curvature_of_the_density_sampled():
+    """A Laplace covariance 100× too wide (and one 100× too narrow) in one direction — what a
+    likelihood tempered for misfit did to the noise parameters — is replaced by the inverse
+    curvature of the density NUTS samples; without the problem the given covariance is kept."""
+    problem, _, mean, cov = _toy()
+    for factor in (100.0, 0.01):
+        wrong = cov.copy()
+        wrong[0, :] *= np.sqrt(factor)
+        wrong[:, 0] *= np.sqrt(factor)
+        coords = Coordinates.of(problem).whitened(mean, wrong, problem)
+        chol = np.asarray(coords.chol)
+        np.testing.assert_allclose(chol @ chol.T, cov, rtol=1e-5, atol=1e-8)
+        kept = np.asarray(Coordinates.of(problem).whitened(mean, wrong).chol)
+        np.testing.assert_allclose(kept @ kept.T, wrong, rtol=1e-6)
+
+
 def test_auto_rule_names_the_budget():
     rule = auto_switch_rule(20_000)
     assert rule(500, np.array([3.0, 10.0])) is None
