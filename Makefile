@@ -15,9 +15,9 @@ $(BIN)/.installed: pyproject.toml
 run: $(BIN)/.installed
 	$(BIN)/python scripts/main_job.py -o $(OUT)
 
-# the threaded batch-sampler tests and the NUTS tests run in processes of their own first: in
-# clean-clone runs a long-lived xdist worker crashed inside XLA (serialising or compiling a
-# program) three times, late in the run, never when those files ran alone
+# the threaded batch-sampler tests and the NUTS tests run in processes of their own first (they
+# compile many programs); tests/conftest.py drops compiled programs after every file, as a
+# long-lived xdist worker otherwise runs out of memory mappings (vm.max_map_count) inside XLA
 test: $(BIN)/.installed
 	$(BIN)/python -m pytest -q tests/test_batch_sampler.py
 	$(BIN)/python -m pytest -q tests/test_nuts.py

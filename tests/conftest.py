@@ -1,5 +1,6 @@
 """Shared pytest fixtures."""
 
+import gc
 import gzip
 import os
 import shutil
@@ -51,6 +52,18 @@ else:
     os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = str(MIN_COMPILE_TIME_S)
     os.environ["JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES"] = "-1"
     enable_compilation_cache(TEST_CACHE_DIR)  # JAX may have been imported before this file
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _release_compiled_programs():
+    """Drop JAX's compiled programs after each test file. Every XLA CPU executable holds a few
+    memory mappings until its jit cache entry goes; a long-lived xdist worker compiling for
+    dozens of files reached ~30 000 of Linux's default 65 530 (vm.max_map_count), and workers
+    that passed it aborted inside XLA (serialising or compiling a program, late in clean-clone
+    runs, never when a file ran alone). The disk cache makes a later file's recompiles cheap."""
+    yield
+    jax.clear_caches()
+    gc.collect()
 
 
 def pytest_unconfigure(config):
