@@ -121,3 +121,18 @@ def test_a_fit_computes_in_float64_without_touching_the_session(tmp_path):
     scoped, reference = _scoped_and_global(tmp_path, "laplace_fit")
     for key in scoped:
         np.testing.assert_allclose(scoped[key], reference[key], rtol=1e-10)
+
+
+def test_import_leaves_the_matplotlib_backend_as_it_was():
+    """A notebook's inline backend must survive ``import torsionfit.plots`` (and the paper,
+    accept and diagnose figures): no matplotlib.use() on import."""
+    out = _python(f"""
+        import importlib, matplotlib
+        matplotlib.use("svg")
+        for name in {MODULES!r} + ("torsionfit.paper.figures", "torsionfit.accept._figure"):
+            importlib.import_module(name)
+        from torsionfit.diagnose import _report
+        _report._plt()
+        print(matplotlib.get_backend())
+    """)
+    assert out.strip().lower() == "svg"

@@ -1,14 +1,12 @@
 """Figures. Every figure says where its data came from (measured, with the source, or
 SYNTHETIC); angles in arcmin, torque in N·m."""
 
-import matplotlib
-
-matplotlib.use("Agg")  # files only: no screen on benches and CI
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+# no matplotlib.use(): importing must not switch the user's backend (a notebook keeps its inline
+# figures); without a screen matplotlib picks Agg itself, and the figures here are saved to files
+import matplotlib.pyplot as plt
+import numpy as np
 
 from ._x64 import in_float64
-from ._x64 import in_float64  # noqa: E402
 from .units import ANGLE_UNITS, SPEED_UNITS, STIFFNESS_UNITS, from_si  # noqa: E402
 
 #: a parameter's SI unit → (the unit figures show it in, SI value of one shown unit)

@@ -3,11 +3,8 @@ contour and the requirement's region (the paper's Fig. 19 made probabilistic).""
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")  # files only
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.patches import Rectangle  # noqa: E402
+import matplotlib.pyplot as plt  # the user's backend is left alone (no matplotlib.use on import)
+from matplotlib.patches import Rectangle
 
 from ._envelope import Envelope  # noqa: E402
 

@@ -106,10 +106,7 @@ def write_diagnosis(d: Diagnosis, campaign, out_dir, seed: int = 0, command: str
 
 
 def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # the user's backend left alone (Agg by itself without a screen)
 
     return plt
 

@@ -2,11 +2,8 @@
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")  # files only
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt  # the user's backend is left alone (no matplotlib.use on import)
+import numpy as np
 
 from ... import plots  # noqa: E402
 from .._published import SYNTHETIC_LABEL  # noqa: E402
