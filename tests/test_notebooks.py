@@ -47,3 +47,16 @@ def test_notebook_runs(path, monkeypatch):
     # raises CellExecutionError, with the cell and its traceback, on any failure; the executed
     # copy is not written back, so the stored notebook stays without outputs
     client.execute()
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+def test_docs_show_an_executed_copy_of_the_current_notebook(path):
+    """docs/notebooks/ holds the executed copies the site shows (scripts/render_notebooks.py):
+    one per notebook, with outputs, of the notebook's current code (re-render after an edit)."""
+    copy = ROOT / "docs" / "notebooks" / path.name
+    assert copy.is_file() and not copy.is_symlink(), f"{copy}: run scripts/render_notebooks.py --small"
+    stored, rendered = nbformat.read(path, as_version=4), nbformat.read(copy, as_version=4)
+    code = [c.source for c in stored.cells if c.cell_type == "code"]
+    assert code == [c.source for c in rendered.cells if c.cell_type == "code"], \
+        f"{copy} was rendered from an older {path.name}: run scripts/render_notebooks.py --small {path.stem}"
+    assert any(c.outputs for c in rendered.cells if c.cell_type == "code"), f"{copy} has no outputs"
