@@ -66,6 +66,24 @@ def _release_compiled_programs():
     gc.collect()
 
 
+#: within one file (test_diagnose.py compiles thousands of programs) the count is checked after
+#: every test and the programs dropped above this many mappings
+MAX_MAPPINGS = 20_000
+
+
+@pytest.fixture(autouse=True)
+def _release_compiled_programs_when_many():
+    yield
+    try:
+        with open("/proc/self/maps") as fh:
+            mappings = sum(1 for _ in fh)
+    except OSError:  # not Linux: no such limit to watch
+        return
+    if mappings > MAX_MAPPINGS:
+        jax.clear_caches()
+        gc.collect()
+
+
 def pytest_unconfigure(config):
     # the process that named the folder ends last (xdist's controller after its workers)
     if _NAMED_HERE:
