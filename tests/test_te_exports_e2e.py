@@ -208,3 +208,40 @@ def test_simulate_command_writes_the_export_layout(tmp_path, capsys):
     campaign = load_campaign(tmp_path / "export" / "campaign.toml")  # declared: reads back
     assert campaign.te_runs and not campaign.hysteresis_runs
     assert len(campaign.te_zero_groups) > 1  # one zero per test, as the export re-zeroes
+
+
+def test_readme_manifest_example_reads_a_bench_export(export, tmp_path):
+    """The README's TE-export manifest, completed with its backward run as its comment says,
+    reads a test file the bench wrote in that layout, into the runs the bench's own manifest
+    declares for that file (inline tables or [runs.columns]: the same manifest)."""
+    import tomllib
+
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    section = readme[readme.index("## TE bench exports"):]
+    block = re.search(r"```toml\n(.*?)```", section, re.S).group(1)
+    example = tomllib.loads(block)
+    fw = example["runs"][0]
+    assert fw["direction"] == "forward" and fw["columns"] == {"output_angle": "Pos_fw", "te": "TE_fw"}
+    _, _, manifest = export
+    written = tomllib.loads(manifest.read_text())
+    ours = next(r for r in written["runs"] if r["direction"] == "forward" and r["torque_Nm"] == 1000.0
+                and r["temperature_C"] == 40.0)
+    assert set(fw) == set(ours), "the README example declares what the bench's manifest declares"
+    # point the example at the bench's file (its logger rate, its ratio) and add the backward run
+    name = Path(ours["file"]).stem
+    fw |= {"name": f"{name}-fw", "file": str(manifest.parent / ours["file"]), "zero_group": name,
+           "torque_Nm": ours["torque_Nm"], "input_speed_rpm": ours["input_speed_rpm"]}
+    bw = fw | {"name": f"{name}-bw", "direction": "backward", "columns": {"output_angle": "Pos_bw", "te": "TE_bw"}}
+    lines = block.split("[[runs]]")[0].replace("4000.0", str(written["instrument"]["sample_rate_Hz"]))
+    lines = lines.replace("ratio = 81.0", f"ratio = {written['reducer']['ratio']}")
+    def value(v):
+        return "{ " + ", ".join(f"{k} = {json.dumps(x)}" for k, x in v.items()) + " }" if isinstance(v, dict) else json.dumps(v)
+
+    for run in (fw, bw):
+        lines += "\n[[runs]]\n" + "".join(f"{k} = {value(v)}\n" for k, v in run.items())
+    path = tmp_path / "campaign.toml"
+    path.write_text(lines)
+    campaign = load_campaign(path)
+    assert [r.direction for r in campaign.runs] == [1, -1]  # forward, backward
+    assert len(campaign.te_zero_groups) == 1
+    np.testing.assert_allclose(campaign.runs[0].speed_rpm, ours["input_speed_rpm"] / written["reducer"]["ratio"])
