@@ -15,12 +15,13 @@ $(BIN)/.installed: pyproject.toml
 run: $(BIN)/.installed
 	$(BIN)/python scripts/main_job.py -o $(OUT)
 
-# the threaded batch-sampler tests run in a process of their own first; tests/conftest.py drops
-# compiled programs after every file, as a long-lived xdist worker otherwise runs out of memory
-# mappings (vm.max_map_count) inside XLA
+# the threaded batch-sampler tests and the NUTS tests run in processes of their own first (they
+# compile many programs); tests/conftest.py drops compiled programs after every file, as a
+# long-lived xdist worker otherwise runs out of memory mappings (vm.max_map_count) inside XLA
 test: $(BIN)/.installed
 	$(BIN)/python -m pytest -q tests/test_batch_sampler.py
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile --ignore tests/test_batch_sampler.py
+	$(BIN)/python -m pytest -q tests/test_nuts.py
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --ignore tests/test_batch_sampler.py --ignore tests/test_nuts.py
 
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_hysteresis_scan.py

@@ -1,8 +1,7 @@
 """The undeclared-effect zoo: `diagnose` on every SYNTHETIC campaign the diagnose tests use, one table.
 
-Each case is built by the same function, with the same seeds, as in ``tests/test_diagnose.py``,
-``tests/test_diagnose_te.py`` and ``tests/test_diagnose_friction.py`` (the virtual benches under
-``tests/benches/``): an effect
+Each case is built by the same function, with the same seeds, as in ``tests/test_diagnose.py``
+and ``tests/test_diagnose_friction.py`` (the virtual benches under ``tests/benches/``): an effect
 switched on in the bench and never named in the written manifest, or one added to the readings.
 The table (what was found, RMSE before and after, the noise estimate, ``unexplained``, ΔELPD ± SE
 of each step) goes to ``docs/diagnose/zoo.md`` and between the markers ``<!-- zoo:begin -->`` and
@@ -28,7 +27,6 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the cases are the tests' own builders
 
 import test_diagnose as td  # noqa: E402
-import test_diagnose_te as tte  # noqa: E402
 import test_diagnose_friction as tf  # noqa: E402
 
 from torsionfit._cache import enable_compilation_cache  # noqa: E402
@@ -57,9 +55,9 @@ def _friction(name):
 
 
 ZOO = (
-    Entry("kinematic TE, 3600 samples/rev, 0.4″ noise", "effects/te_kinematic.toml", tte.te_kinematic_case,
+    Entry("kinematic TE, 3600 samples/rev, 0.4″ noise", "effects/te_kinematic.toml", td.te_kinematic_case,
           ("kinematic_error",)),
-    Entry("kinematic + speed (TE)", "effects/te_speed.toml", lambda folder: tte.kinematic_speed_case(folder, 0),
+    Entry("kinematic + speed (TE)", "effects/te_speed.toml", lambda folder: td.kinematic_speed_case(folder, 0),
           ("kinematic_error", "speed_dependence")),
     _effect("stiffness_nonlinearity"),
     _effect("rate_dependence"),
@@ -135,7 +133,7 @@ def page(rows: list, total_s: float, options: DiagnoseOptions) -> str:
         "Every campaign is SYNTHETIC: simulated by the virtual bench from the bench file named below (under "
         "`tests/benches/`), with one or two effects switched on there — or added to the readings — and written "
         "without naming them, so `diagnose` sees only the data. The cases, their parameters and seeds are those of "
-        "`tests/test_diagnose.py`, `tests/test_diagnose_te.py` and `tests/test_diagnose_friction.py` (first seed). "
+        "`tests/test_diagnose.py` and `tests/test_diagnose_friction.py` (first seed). "
         f"Settings: `DiagnoseOptions()` (signature α {options.alpha:g}, an effect is kept when ΔELPD > "
         f"{options.min_delta_elpd:g} and > {options.se_factor:g} SE, {options.loo_draws} Laplace draws for PSIS-LOO, "
         f"{options.n_starts} MAP starts). ΔELPD ± SE of each step added (criteria used: {', '.join(criteria) or 'none'}; "
