@@ -1,5 +1,6 @@
 """Reading TE bench exports as they are: sign convention, zero groups, no time column, motor
-speed, NaN pads, selection before parsing, temperature — and a fit through all of it.
+speed, NaN pads, selection before parsing, temperature. The fit of a declared export is in
+test_te_exports_e2e.py.
 
 Every export here is SYNTHETIC, written by the tests from the model with known parameters."""
 
@@ -196,18 +197,3 @@ def test_speed_keys(tmp_path):
         load_campaign(_small_te(tmp_path, _rows(), keys=""))
     run = load_campaign(_small_te(tmp_path, _rows(), keys="input_speed_rpm = 600.0", reducer="ratio = 100.0")).runs[0]
     assert run.speed_rpm == 6.0
-
-
-def test_fit_recovers_stiffness_of_declared_export(export):
-    from torsionfit.report import FitOptions, fit_campaign
-
-    folder, files = export
-    campaign = load_campaign(_manifest(folder, files))
-    fit = fit_campaign(campaign, FitOptions(sampler="laplace", n_starts=2, laplace_draws=400, metric_draws=200,
-                                            progress=False), seed=0)
-    values = fit.map_result.values
-    assert np.asarray(values["te_offset"]).shape == (3,)
-    k = float(values["stiffness"])
-    assert k == pytest.approx(TRUTH["stiffness"], rel=0.03)
-    # the per-test zeros come back (lag-positive, as read)
-    np.testing.assert_allclose(np.asarray(values["te_offset"]) / ARCMIN, SHIFTS_ARCMIN, atol=0.1)
