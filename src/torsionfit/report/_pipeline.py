@@ -26,6 +26,7 @@ from ..io import Campaign, decimate
 from ..model import model_with_effects
 from ..units import ANGLE_UNITS
 from ._derived import derived_metrics_for
+from ._follows import not_followed_reason, runs_not_followed
 
 ARCSEC = ANGLE_UNITS["arcsec"]
 #: progress lines (INFO); the command line shows them on stderr unless --quiet
@@ -303,7 +304,7 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     rng = np.random.default_rng(seed)
     if options.sampler not in SAMPLERS:
         raise InputError(f"sampler must be one of {', '.join(SAMPLERS)}, got {options.sampler!r}")
-    from ..sample import convergence_summary, draw_thinning, pointwise_draw_limit, to_datatree
+    from ..sample import ConvergenceWarning, convergence_summary, draw_thinning, pointwise_draw_limit, to_datatree
 
     # draws the ArviZ tree can hold with its pointwise log-likelihood and predictive
     tree_limit = pointwise_draw_limit(sum(len(y) for y in problem.y))
@@ -360,6 +361,16 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
         diagnostics.update(_sampler_diagnostics(sample_result, used, convergence_summary(tree), chain))
     residuals = _residuals(problem, jnp.asarray(map_result.u))
     rmse = {n: float(np.sqrt(np.mean(np.asarray(e) ** 2)) / ARCSEC) for n, e in zip(names, residuals)}
+    # "converged" is the optimiser's and the sampler's word; whether the fit draws the data is
+    # checked apart (report/_follows.py): a fit worse than a straight line is never a result
+    not_followed = runs_not_followed(campaign.runs, residuals)
+    diagnostics["follows_data"] = not not_followed
+    if not_followed:
+        reason = not_followed_reason(not_followed)
+        diagnostics["not_followed"] = not_followed
+        diagnostics["converged"] = False
+        diagnostics["reason"] = "; ".join(x for x in (reason, diagnostics.get("reason", "")) if x)
+        warnings.warn(reason, ConvergenceWarning)
     return CampaignFit(campaign=campaign, options=options, problem=problem, map_result=map_result,
                        draws_u=np.asarray(draws_u), metric_specs=derived.specs, metric_draws=metric_draws,
                        diagnostics=diagnostics, rmse_arcsec=rmse, tree_source=tree, sample_result=sample_result,
