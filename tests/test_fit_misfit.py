@@ -31,16 +31,41 @@ def test_white_residuals_leave_the_posterior_as_it_is():
     assert misfit_inflation(problem, result.u) == 1.0
     assert widened(problem, result, 1.0) == (problem, result)  # nothing to widen: the same objects
     # widened by 4: the likelihood to the power 1/4 (prior and the linear block's term unchanged),
-    # the physics block of the Laplace covariance × 4, the MAP point kept
+    # the physics block of the Laplace covariance that of the tempered density, the MAP kept
     tempered, wide = widened(problem, result, 4.0)
     u = jnp.asarray(result.u)
     ll = sum(float(jnp.sum(x)) for x in problem.pointwise_log_likelihood(u))
     assert float(tempered.log_density(u)) - float(problem.log_density(u)) == \
         pytest.approx(-0.75 * ll, rel=1e-9, abs=1e-6)
     n = problem.n_nonlinear
-    assert np.allclose(wide.cov[:n, :n], 4.0 * result.cov[:n, :n])
+    # precision: the likelihood's curvature / 4 + the prior's (untouched), so between the
+    # untempered covariance and 4× it, and never wider than the prior in any direction
+    prior_precision = np.diag(1.0 / np.asarray(problem.prior_sd) ** 2)
+    precision, precision0 = np.linalg.inv(wide.cov[:n, :n]), np.linalg.inv(result.cov[:n, :n])
+    np.testing.assert_allclose(precision, (precision0 - prior_precision) / 4.0 + prior_precision,
+                               rtol=1e-6, atol=1e-8 * np.abs(precision0).max())
+    sd, sd0 = np.sqrt(np.diag(wide.cov[:n, :n])), np.sqrt(np.diag(result.cov[:n, :n]))
+    assert np.all(sd >= sd0 * (1 - 1e-9)) and np.all(sd <= 2.0 * sd0 * (1 + 1e-9))
+    assert np.all(sd <= np.asarray(problem.prior_sd) * (1 + 1e-9))
     assert np.allclose(wide.cov[n:, n:], result.cov[n:, n:]) and np.array_equal(wide.u, result.u)
     assert wide.problem is tempered
+
+
+def test_widening_keeps_a_parameter_the_data_do_not_inform_within_its_prior():
+    """However large the widening, no sd exceeds its prior's, and as the factor grows the
+    covariance tends to the prior's: a direction the data do not inform stays within its prior
+    (scaling the whole covariance by the factor took it √factor times past it)."""
+    from torsionfit.fit._misfit import tempered_physics_covariance
+
+    problem, result = _base_fit(BENCH, seed=3)
+    n = problem.n_nonlinear
+    for factor in (4.0, 100.0):
+        sd = np.sqrt(np.diag(tempered_physics_covariance(problem, result.u, factor)))
+        assert np.all(sd <= np.asarray(problem.prior_sd) * (1 + 1e-9)), factor
+    # with factor → ∞ the covariance tends to the prior's
+    wide = tempered_physics_covariance(problem, result.u, 1e12)
+    np.testing.assert_allclose(np.sqrt(np.diag(wide)), np.asarray(problem.prior_sd), rtol=1e-4)
+    assert wide.shape == (n, n)
 
 
 def test_structure_the_model_lacks_widens_it(tmp_path):
