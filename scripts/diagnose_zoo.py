@@ -1,7 +1,7 @@
 """The undeclared-effect zoo: `diagnose` on every SYNTHETIC campaign the diagnose tests use, one table.
 
 Each case is built by the same function, with the same seeds, as in ``tests/test_diagnose.py``
-and ``tests/test_diagnose_friction.py`` (the virtual benches under ``tests/benches/``): an effect
+``tests/test_diagnose_friction.py`` and ``tests/test_diagnose_temperature.py`` (the virtual benches under ``tests/benches/``): an effect
 switched on in the bench and never named in the written manifest, or one added to the readings.
 The table (what was found, RMSE before and after, the noise estimate, ``unexplained``, ΔELPD ± SE
 of each step) goes to ``docs/diagnose/zoo.md`` and between the markers ``<!-- zoo:begin -->`` and
@@ -28,6 +28,7 @@ sys.path.insert(0, str(ROOT / "tests"))  # the cases are the tests' own builders
 
 import test_diagnose as td  # noqa: E402
 import test_diagnose_friction as tf  # noqa: E402
+import test_diagnose_temperature as tt  # noqa: E402
 
 from torsionfit._cache import enable_compilation_cache  # noqa: E402
 from torsionfit.diagnose import DiagnoseOptions, diagnose  # noqa: E402
@@ -73,6 +74,12 @@ ZOO = (
     Entry("creep + kinematic", "effects/base.toml", td.two_effects_case, ("rate_dependence", "kinematic_error")),
     Entry("encoder ripple (outside the catalog)", "effects/base.toml", td.ripple_case, (), unexplained=True),
     Entry("clean", "effects/base.toml", lambda folder: td.clean_case(folder, 3), ()),
+    Entry("temperature: stiffness and friction (TE at 25/40/55 °C)", "effects/te_temperature.toml",
+          lambda folder: tt.temperature_case(folder, 0), ("temperature_dependence",)),
+    Entry("temperature: friction level only", "effects/te_temperature.toml",
+          lambda folder: tt.temperature_case(folder, 1), ("temperature_dependence",)),
+    Entry("clean at three temperatures", "effects/te_temperature.toml",
+          lambda folder: tt.temperature_case(folder, 0, clean=True), ()),
 )
 
 

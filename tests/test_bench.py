@@ -95,6 +95,8 @@ def load_bench_with(path, effects, truth_extra, tmp=[]):
         (lambda s: s.replace("[truth]", "[effects]\nkinematic_error = [1.5]\n[truth]"), "kinematic_error"),
         (lambda s: s.replace("[truth]", "[effects]\nwarp_drive = true\n[truth]"), "unknown key 'warp_drive'"),
         (lambda s: s + "\n[[", "TOML syntax error"),
+        (lambda s: s.replace("[truth]", "[effects]\ntemperature_dependence = true\n[truth]\ntemperature_compliance_per_K = 0.003\n"
+                             "temperature_friction_per_K = -0.02"), "temperature_dependence needs every run's temperature_C"),
     ],
 )
 def test_bad_bench_files(tmp_path, edit, message):

@@ -9,7 +9,7 @@ import optimistix as optx
 import pytest
 
 from torsionfit.bench import load_bench, simulate
-from torsionfit.fit import _map, build_problem, fit_map
+from torsionfit.fit import _map, build_problem, fit_map, temperatures_resolving_friction
 from torsionfit.model import model_with_effects
 
 BENCH = Path(__file__).parent / "benches" / "stat_rv_white.toml"
@@ -79,3 +79,38 @@ def test_a_nested_models_optimum_warm_starts_the_extension(problem):
     assert len(warm.starts) == 2  # the warm start, then the prior centre
     with pytest.raises(ValueError, match="warm starts have"):
         fit_map(extended, names, n_starts=1, warm_starts=np.zeros((1, 3)))
+
+
+def test_temperature_term_needs_every_runs_temperature():
+    """A temperature-dependent model on runs without a temperature, or all at one, stops with
+    one line naming the run or the temperature — never a fit at an assumed ΔT = 0."""
+    import dataclasses
+
+    from torsionfit import InputError
+
+    bench = load_bench(Path(__file__).parent / "benches" / "effects" / "te_temperature.toml")
+    campaign = simulate(bench, seed=0).campaign
+    model = model_with_effects([r.kind for r in campaign.runs], {"temperature_dependence": True},
+                               campaign.reducer.rated_torque_Nm)
+    problem = build_problem(campaign, model)
+    assert campaign.reference_temperature_C == 40.0
+    assert [float(i.temperature_delta_K) for i in problem.inputs] == [0.0, -15.0, -15.0, 0.0, 0.0, 15.0, 15.0]
+    unknown = dataclasses.replace(campaign, runs=(dataclasses.replace(campaign.runs[0], nominal_temperature_C=None),
+                                                  *campaign.runs[1:]))
+    with pytest.raises(InputError, match="run 'hyst-40C': temperature_dependence needs every run's temperature"):
+        build_problem(unknown, model)
+    one = dataclasses.replace(campaign, runs=tuple(dataclasses.replace(r, nominal_temperature_C=40.0) for r in campaign.runs))
+    with pytest.raises(InputError, match="two or more temperatures; all runs are at 40 °C"):
+        build_problem(one, model)
+    # one TE load per temperature and a loop at one: a softer spring and more friction widen
+    # the TE span alike — the friction coefficient must be declared away, never guessed
+    one_load = dataclasses.replace(campaign, runs=tuple(
+        dataclasses.replace(r, torque_Nm=380.0) if r.kind == "transmission_error" else r for r in campaign.runs))
+    assert temperatures_resolving_friction(campaign) == [25.0, 40.0, 55.0]
+    assert temperatures_resolving_friction(one_load) == [40.0]
+    with pytest.raises(InputError, match=r"at: 40 °C\); declare temperature_dependence = \{friction = false\}"):
+        build_problem(one_load, model)
+    compliance_only = model_with_effects([r.kind for r in campaign.runs], {"temperature_dependence": {"friction": False}},
+                                         campaign.reducer.rated_torque_Nm)
+    names = [p.name for p in build_problem(one_load, compliance_only).physics]
+    assert "temperature_compliance" in names and "temperature_friction" not in names

@@ -40,15 +40,16 @@ def full_model_and_data():
         creep=m.Creep(),
         kinematic=m.KinematicHarmonics(orders=(1, 2, 14)),
         speed=m.SpeedDependence(viscous=True, compliance_order=2),
+        temperature=m.TemperatureDependence(),
         drift=True,
         torque_offset=True,
     )
     t, tau = five_step(samples_per_step=60)
     phi = np.linspace(0, 2 * np.pi, 200)
     inputs = [
-        m.hysteresis_input(t, tau),
+        m.hysteresis_input(t, tau, temperature_delta_K=-10.0),
         m.te_input(phi, 80.0, 5.0, +1),
-        m.te_input(phi, 80.0, 10.0, -1),
+        m.te_input(phi, 80.0, 10.0, -1, temperature_delta_K=15.0),
     ]
     params = dict(
         k1=1.5e5, k2=2.0e5, k3=2.5e5, t1=20.0, t2_minus_t1=40.0,
@@ -56,7 +57,7 @@ def full_model_and_data():
         friction_torque=3.0, dahl_torque=1.5, gap=2e-4, gap_torque=2.0,
         creep_stiffness=2e6, creep_time=8.0,
         viscous_friction=0.5, speed_compliance_1=0.01, speed_compliance_2=0.002,
-        torque_offset=0.3,
+        torque_offset=0.3, temperature_compliance=0.004, temperature_friction=-0.02,
         angle_offset=jnp.array([1e-4]), te_offset=jnp.array([-2e-5]),
         kin_cos=jnp.array([1e-5, 2e-6, 1e-6]), kin_sin=jnp.array([-5e-6, 1e-6, 3e-7]),
         drift=jnp.array([1e-7, -2e-7, 3e-7]),
@@ -95,7 +96,7 @@ def test_predict_is_the_components_total():
     "k1", "k2", "k3", "t1", "t2_minus_t1", "compliance_asymmetry", "friction_torque",
     "dahl_torque", "gap", "gap_torque", "creep_stiffness", "creep_time", "viscous_friction",
     "speed_compliance_1", "speed_compliance_2", "torque_offset", "angle_offset", "te_offset",
-    "kin_cos", "kin_sin", "drift",
+    "kin_cos", "kin_sin", "drift", "temperature_compliance", "temperature_friction",
 ])
 def test_gradient_matches_finite_difference(name):
     model, inputs, params = full_model_and_data()
@@ -232,6 +233,31 @@ def test_te_direction_flips_sign_of_twist():
     assert float(fw[0]) == pytest.approx((RATED + 3.0) / 2.0e5 + 1e-4 * np.tanh(103 / 2.0), rel=1e-12)
 
 
+def test_temperature_scales_compliance_and_friction_level():
+    """A TE run ΔT above the reference twists by exp(α_C·ΔT)·C(τ + exp(α_f·ΔT)·T_f) + gap; at
+    ΔT = 0 the model is the one without the term; a loop's width follows the friction level."""
+    plain = m.CampaignModel(run_kinds=("transmission_error", "hysteresis"))
+    warm = m.CampaignModel(run_kinds=("transmission_error", "hysteresis"), temperature=m.TemperatureDependence())
+    p = base_params(te_offset=jnp.zeros(1), temperature_compliance=0.004, temperature_friction=-0.02)
+    phi = np.linspace(0, 2 * np.pi, 50)
+    t, tau = five_step(samples_per_step=200)
+    at_reference = [m.te_input(phi, RATED, 5, +1), m.hysteresis_input(t, tau)]
+    for a, b in zip(warm.predict(p, at_reference), plain.predict(p, at_reference)):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-15)
+    dT = 20.0
+    te, loop = warm.predict(p, [m.te_input(phi, RATED, 5, +1, temperature_delta_K=dT), m.hysteresis_input(t, tau, dT)])
+    mesh = RATED + 3.0 * np.exp(-0.02 * dT)
+    assert float(te[0]) == pytest.approx(np.exp(0.004 * dT) * mesh / 2.0e5 + 1e-4 * np.tanh(mesh / 2.0), rel=1e-12)
+    # loop width at zero torque on the unloading branch (steps 2 and 4), warm against at reference
+    cold_loop = plain.predict(p, [m.te_input(phi, RATED, 5, +1), m.hysteresis_input(t, tau)])[1]
+
+    def width(theta):
+        down = np.flatnonzero(np.abs(tau) < 1e-9)
+        return float(theta[down[1]] - theta[down[2]])
+
+    assert width(np.asarray(loop)) < width(np.asarray(cold_loop))  # less friction when warm
+
+
 def test_three_segment_slopes():
     c = m.ThreeSegmentCompliance(knee_fraction=0.02)
     p = dict(k1=1e5, k2=2e5, k3=4e5, t1=10.0, t2_minus_t1=40.0)
@@ -267,3 +293,15 @@ def test_duplicate_time_stamps_are_harmless():
 def test_unknown_run_kind_rejected():
     with pytest.raises(ValueError, match="unknown run kind"):
         m.CampaignModel(run_kinds=("torque_ramp",))
+
+
+def test_temperature_effect_values():
+    """true, or {friction = false} (compliance only); anything else is one clear line."""
+    from torsionfit import InputError
+
+    full = m.model_with_effects(["transmission_error"], {"temperature_dependence": True}, RATED)
+    only = m.model_with_effects(["transmission_error"], {"temperature_dependence": {"friction": False}}, RATED)
+    assert {p.name for p in full.parameters()} - {p.name for p in only.parameters()} == {"temperature_friction"}
+    for bad in ("yes", {"friction": "no"}, {"viscosity": True}):
+        with pytest.raises(InputError, match="temperature_dependence: expected true, false or"):
+            m.model_with_effects(["transmission_error"], {"temperature_dependence": bad}, RATED)

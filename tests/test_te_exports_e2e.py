@@ -146,8 +146,11 @@ def test_fit_json_runs_name_the_temperatures(export):
     from torsionfit.report._pipeline import _runs_json
 
     _, _, manifest = export
-    doc = json.loads(json.dumps(_runs_json(load_campaign(manifest))))
-    assert doc["temperatures_C"] == [25.0, 40.0]
+    campaign = load_campaign(manifest)
+    doc = json.loads(json.dumps(_runs_json(campaign, temperature_term=False)))
+    assert doc["temperatures_C"] == [25.0, 40.0] and doc["reference_temperature_C"] is None
+    # with the temperature term on, metrics are at the median of the distinct temperatures
+    assert _runs_json(campaign, temperature_term=True)["reference_temperature_C"] == 32.5
     assert doc["runs"]["TE_486rpm_1000Nm_25C-bw"] == {
         "kind": "transmission_error", "temperature_C": 25.0, "torque_Nm": 1000.0, "speed_rpm": 6.0,
         "direction": "backward", "zero_group": "TE_486rpm_1000Nm_25C"}

@@ -22,6 +22,7 @@ EFFECTS = (
     "torque_offset",
     "load_dependent_friction",
     "distributed_friction",
+    "temperature_dependence",
     "encoder_ripple",  # outside the catalog: a sub-division error periodic in the measured angle
 )
 
@@ -36,6 +37,7 @@ class HysteresisSpec:
     position_deg: float = 180.0  # output position of the locked loop
     play_cycles: int = 0  # small cycles 0→+x→−x→0 before the stiffness ramps ("play ramps")
     play_torque_Nm: float | None = None  # x of the play ramps (default 5 % of the rated torque)
+    temperature_C: float | None = None  # nominal temperature of the run (written as temperature_C)
 
 
 @dataclass(frozen=True)
@@ -161,7 +163,7 @@ def load_bench(path) -> Bench:
         names.add(name)
         if kind == "hysteresis":
             _check_keys(r, {"name", "kind", "loading_rate_Nm_per_s", "peak_torque_Nm", "cycles", "dwell_s", "position_deg",
-                            "play_cycles", "play_torque_Nm"}, where)
+                            "play_cycles", "play_torque_Nm", "temperature_C"}, where)
             play_cycles = _num(r, "play_cycles", where, 0.0)
             if play_cycles < 0 or play_cycles != int(play_cycles):
                 raise InputError(f"{where}.play_cycles: expected a whole number ≥ 0, got {r['play_cycles']!r}")
@@ -178,6 +180,7 @@ def load_bench(path) -> Bench:
                 position_deg=_num(r, "position_deg", where, 180.0),
                 play_cycles=int(play_cycles),
                 play_torque_Nm=play_torque if play_cycles else None,
+                temperature_C=_num(r, "temperature_C", where),
             ))
         elif kind == "transmission_error":
             _check_keys(r, {"name", "kind", "speed_rpm", "torque_Nm", "direction", "revolutions", "temperature_C"}, where)

@@ -10,7 +10,7 @@ from .._x64 import in_float64
 from .. import model as m
 from ..model import model_with_effects as truth_model
 from .._errors import InputError
-from ..io import Campaign, HysteresisRun, TransmissionErrorRun
+from ..io import Campaign, HysteresisRun, TransmissionErrorRun, reference_temperature_C
 from ..units import ANGLE_UNITS
 from ._config import Bench, HysteresisSpec, TESpec, te_tests
 
@@ -110,6 +110,15 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
     torque_sd = bench.noise.torque_sd_Nm if bench.noise.torque_sd_Nm is not None else (ins.torque_sd_Nm or 0.0)
     offset = float(truth["torque_offset"]) if "torque_offset" in truth else 0.0
     ripple = bench.effects.get("encoder_ripple")
+    reference_C = reference_temperature_C(spec.temperature_C for spec in bench.runs)
+    if model.temperature is not None:
+        missing = [spec.name for spec in bench.runs if spec.temperature_C is None]
+        if missing:
+            raise InputError(f"{where} runs {missing[0]!r}: temperature_dependence needs every run's temperature_C")
+
+    def delta_K(spec):
+        """The run's temperature above the campaign's reference (as a fit will read it)."""
+        return 0.0 if spec.temperature_C is None else spec.temperature_C - reference_C
 
     def measured_angle(theta, position=0.0):
         """Output encoder at ``position + theta``: sub-division ripple (if on), extra noise,
@@ -126,7 +135,7 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
         if isinstance(spec, HysteresisSpec):
             t, tau = five_step_protocol(spec.peak_torque_Nm, spec.loading_rate_Nm_per_s, ins.sample_rate_Hz, spec.cycles,
                                        spec.dwell_s, spec.play_cycles, spec.play_torque_Nm)
-            inputs.append(m.hysteresis_input(t, tau + offset))  # the sensor reads true torque + offset
+            inputs.append(m.hysteresis_input(t, tau + offset, delta_K(spec)))  # the sensor reads true torque + offset
             drives.append(tau)
         else:
             # an export's logger runs at a fixed clock: its samples per revolution follow the speed
@@ -143,7 +152,7 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
                 phi = phi[::-1]
             clock = np.arange(len(phi)) * step / (spec.speed_rpm * 2 * np.pi / 60)  # clocked samples
             group = tests.index((spec.torque_Nm, spec.speed_rpm, spec.temperature_C)) if tests else 0
-            inputs.append(m.te_input(phi, spec.torque_Nm + offset, spec.speed_rpm, spec.direction, clock, group))
+            inputs.append(m.te_input(phi, spec.torque_Nm + offset, spec.speed_rpm, spec.direction, clock, group, delta_K(spec)))
             drives.append(np.full(len(phi), spec.torque_Nm))
     comps = model.components(truth, inputs)
 
@@ -164,6 +173,7 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
                 source="synthetic",
                 # a loop below the rated torque declares its nominal peak (the reader checks it)
                 peak_torque_Nm=None if spec.peak_torque_Nm == bench.reducer.rated_torque_Nm else spec.peak_torque_Nm,
+                nominal_temperature_C=spec.temperature_C,
             ))
         else:
             phi = np.asarray(inp.output_angle_rad)

@@ -27,6 +27,7 @@ UNIT_SUFFIXES: dict[str, float] = {
     "s2_per_rad2": 1.0,
     "arcsec_per_s": _ARCSEC,
     "arcmin_per_s": _ARCMIN,
+    "per_K": 1.0,
     "": 1.0,  # dimensionless
 }
 
@@ -44,6 +45,8 @@ ACCEPTED: dict[str, tuple[str, ...]] = {
     "breakaway_spread": ("",),
     "friction_load_coefficient": ("",),
     "drift": ("arcsec_per_s", "arcmin_per_s"),
+    "temperature_compliance": ("per_K",),
+    "temperature_friction": ("per_K",),
     "kin_cos": ("rad", "arcsec", "arcmin"),
     "kin_sin": ("rad", "arcsec", "arcmin"),
 }

@@ -10,7 +10,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..model import DahlFriction, MaxwellSlipFriction
+from ..fit import temperatures_resolving_friction
+from ..model import DahlFriction, MaxwellSlipFriction, TemperatureDependence as TemperatureTerm
 from ..model._drift import WARM_UP_FRACTIONS
 from ..model._effects import DEFAULT_FRICTION_ELEMENTS
 from ._context import FitContext
@@ -387,6 +388,50 @@ class DistributedFriction(Effect):
         return {**effects, self.name: True}
 
 
+class TemperatureDependence(Effect):
+    name = "temperature_dependence"
+    signature_text = "residual that changes with the runs' temperatures: TE level and loop slope move with it"
+    extension_text = "compliance and friction level scaled by exp(α·ΔT) with the run's temperature"
+
+    def applicable(self, ctx):
+        temps = [ctx.campaign.run_temperature_C(r) for r in ctx.campaign.runs]
+        return (None not in temps and len(set(temps)) >= 2
+                and ctx.map_result.problem.model.temperature is None)
+
+    def signature(self, ctx, alpha):
+        # A score test at α = 0: the prediction's derivatives with respect to α_C and α_f at the
+        # fitted values — ΔT times the compliance twist, ΔT times what the friction level does —
+        # tested on every run against everything a refit of the present parameters can absorb.
+        # Those are aligned across runs (one column per parameter, shared): a TE run's physics
+        # directions are constants within the run, so spanned run by run they would remove the
+        # very level shift between temperatures this test looks for.
+        problem = ctx.map_result.problem
+        term = TemperatureTerm(friction=self._friction(ctx))
+        alt = eqx.tree_at(lambda mm: mm.temperature, problem.model, term, is_leaf=lambda x: x is None)
+        extra = {p.name: jnp.asarray(0.0) for p in term.parameters()}
+        pred, jac, alt_pred, alt_jac = _directions(problem, jnp.asarray(ctx.map_result.u), alt, extra)
+        views, cols = [], []
+        for i, run in enumerate(ctx.runs):
+            physics = _columns(jac[i])
+            views.append(replace(run, design=np.concatenate([run.design, physics], axis=1) if physics.size else run.design))
+            cols.append(np.stack([np.asarray(alt_jac[i][k], float) for k in extra], axis=1))
+        temps = sorted({ctx.campaign.run_temperature_C(r) for r in ctx.campaign.runs})
+        return regression_evidence(
+            self.name, views, cols,
+            f"residual along the model's derivatives with respect to a compliance and a friction level changing "
+            f"with temperature (runs at {', '.join(f'{t:g}' for t in temps)} °C)",
+            {"temperatures_C": temps, "reference_C": ctx.campaign.reference_temperature_C,
+             "friction": self._friction(ctx)})
+
+    @staticmethod
+    def _friction(ctx) -> bool:
+        """Whether the friction level's coefficient can be told from the compliance's."""
+        return len(temperatures_resolving_friction(ctx.campaign)) >= 2
+
+    def extend(self, effects, evidence, ctx):
+        return {**effects, self.name: True if self._friction(ctx) else {"friction": False}}
+
+
 CATALOG: tuple[Effect, ...] = (
     StiffnessNonlinearity(),
     RateDependence(),
@@ -397,4 +442,5 @@ CATALOG: tuple[Effect, ...] = (
     TorqueOffset(),
     LoadDependentFriction(),
     DistributedFriction(),
+    TemperatureDependence(),
 )

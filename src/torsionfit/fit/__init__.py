@@ -18,4 +18,5 @@ from ._problem import (
     build_problem as build_problem,
     check_fittable as check_fittable,
     model_inputs as model_inputs,
+    temperatures_resolving_friction as temperatures_resolving_friction,
 )

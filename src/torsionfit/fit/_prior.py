@@ -91,6 +91,10 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "speed_compliance_1": (0.0, 1.0 / v_max),
         "speed_compliance_2": (0.0, 1.0 / v_max**2),
         "torque_offset": (0.0, 0.05 * rated),
+        # per kelvin: a reducer's stiffness moves by well under 1 %/K; its no-load friction
+        # (oil viscosity) by a few %/K
+        "temperature_compliance": (0.0, 0.01),
+        "temperature_friction": (0.0, 0.03),
         "friction_start": (0.0, 1.0),  # tanh-normal: z0 anywhere in (−1, 1)
     }
     loop = first_look_loop(campaign) if any(p.name in ("gap", "friction_torque") for p in parameters) else None

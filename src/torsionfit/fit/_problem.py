@@ -86,17 +86,57 @@ def model_inputs(campaign: Campaign, denoise_fraction: float | None = None, retu
     for run in campaign.runs:
         if isinstance(run, HysteresisRun):
             tau, var = denoise_torque(run.torque_Nm, denoise_fraction, return_variance=True)
-            out.append(m.hysteresis_input(run.time_s, tau))
+            out.append(m.hysteresis_input(run.time_s, tau, campaign.temperature_delta_K(run)))
             variances.append(var)
         else:
             out.append(m.te_input(run.output_angle_rad, run.torque_Nm, run.speed_rpm, run.direction, run.time_s,
-                                  zero_group=campaign.te_zero_index(run)))
+                                  zero_group=campaign.te_zero_index(run),
+                                  temperature_delta_K=campaign.temperature_delta_K(run)))
             variances.append(np.zeros(len(run)))
     return (out, variances) if return_variance else out
 
 
 def observed(campaign: Campaign) -> list[np.ndarray]:
     return [np.asarray(r.angle_rad if isinstance(r, HysteresisRun) else r.te_rad, float) for r in campaign.runs]
+
+
+def temperatures_resolving_friction(campaign: Campaign) -> list[float]:
+    """The run temperatures (°C) at which compliance and friction level show apart: a
+    hysteresis loop there (its width is friction, its slope the spring), or TE runs at two or
+    more loads (friction is a larger share of a smaller load's twist)."""
+    loads: dict[float, set] = {}
+    out = set()
+    for run in campaign.runs:
+        t = campaign.run_temperature_C(run)
+        if t is None:
+            continue
+        if isinstance(run, HysteresisRun):
+            out.add(t)
+        else:
+            loads.setdefault(t, set()).add(round(abs(float(run.torque_Nm)), 9))
+    return sorted(out | {t for t, s in loads.items() if len(s) >= 2})
+
+
+def check_temperatures(campaign: Campaign, friction: bool = True) -> None:
+    """InputError (one line) when a temperature-dependent model cannot be fitted: a run
+    without a temperature, all runs at one temperature, or — with the friction level's
+    temperature coefficient — fewer than two temperatures where the data tell compliance from
+    friction (elsewhere both change a TE run's twist alike, and the fit would pick one of two
+    mirror solutions with a confident, wrong interval)."""
+    for run in campaign.runs:
+        if campaign.run_temperature_C(run) is None:
+            raise InputError(f"run {run.name!r}: temperature_dependence needs every run's temperature "
+                             "(the run key temperature_C or a temperature column)")
+    temps = sorted({campaign.run_temperature_C(r) for r in campaign.runs})
+    if len(temps) < 2:
+        raise InputError(f"temperature_dependence needs runs at two or more temperatures; all runs are at {temps[0]:g} °C")
+    resolving = temperatures_resolving_friction(campaign)
+    if friction and len(resolving) < 2:
+        at = ", ".join(f"{t:g}" for t in resolving) or "none"
+        raise InputError(
+            "temperature_dependence: compliance and friction level show apart at fewer than two temperatures "
+            f"(a loop, or TE at two or more loads, at: {at} °C); declare temperature_dependence = "
+            "{friction = false} (compliance only) or measure loops or several loads at two temperatures")
 
 
 def check_fittable(campaign: Campaign) -> None:
@@ -233,7 +273,7 @@ class FitProblem(eqx.Module):
         for inp, basis in zip(self.inputs, self.knot_basis):
             k = basis.shape[1]
             if k:
-                inp = m.HysteresisInput(inp.time_s, inp.torque_Nm + basis @ u_nl[i:i + k])
+                inp = m.HysteresisInput(inp.time_s, inp.torque_Nm + basis @ u_nl[i:i + k], inp.temperature_delta_K)
             out.append(inp)
             i += k
         return out
@@ -399,6 +439,8 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
         # one TE zero per zero group of the campaign (manifest key zero_group)
         model = dataclasses.replace(model, te_zero_groups=len(campaign.te_zero_groups))
     check_fittable(campaign)
+    if model.temperature is not None:
+        check_temperatures(campaign, model.temperature.friction)
     params = model.parameters()
     physics = tuple(p for p in params if not p.linear)
     linear = tuple(p for p in params if p.linear)

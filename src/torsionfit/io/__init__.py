@@ -7,6 +7,7 @@ from ._campaign import (
     Reducer as Reducer,
     Run as Run,
     TransmissionErrorRun as TransmissionErrorRun,
+    reference_temperature_C as reference_temperature_C,
 )
 from ._decimate import decimate as decimate
 from ._manifest import load_campaign as load_campaign, write_campaign as write_campaign

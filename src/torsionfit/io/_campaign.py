@@ -98,6 +98,13 @@ class TransmissionErrorRun:
 Run = HysteresisRun | TransmissionErrorRun
 
 
+def reference_temperature_C(temperatures) -> float | None:
+    """The median of the distinct known temperatures (°C; None entries ignored, None when
+    none is known): what a temperature-dependent model's ΔT = 0 means."""
+    known = sorted({float(t) for t in temperatures if t is not None})
+    return float(np.median(known)) if known else None
+
+
 @dataclass(frozen=True, eq=False)
 class Campaign:
     """One unit: reducer, instrument and runs. ``path`` is the manifest it came from."""
@@ -124,3 +131,24 @@ class Campaign:
     def te_zero_index(self, run: TransmissionErrorRun) -> int:
         """Index of ``run``'s zero group in :attr:`te_zero_groups` (the model's ``te_offset``)."""
         return self.te_zero_groups.index(run.zero_group)
+
+    @staticmethod
+    def run_temperature_C(run: Run) -> float | None:
+        """A run's temperature (°C): its ``temperature_C`` key, else the median of its
+        temperature column, else None."""
+        if run.nominal_temperature_C is not None:
+            return float(run.nominal_temperature_C)
+        if run.temperature_C is not None and np.any(np.isfinite(run.temperature_C)):
+            return float(np.nanmedian(run.temperature_C))
+        return None
+
+    @property
+    def reference_temperature_C(self) -> float | None:
+        """The temperature a temperature-dependent model's metrics refer to (°C): the median of
+        the distinct run temperatures; None when no run has one."""
+        return reference_temperature_C(self.run_temperature_C(r) for r in self.runs)
+
+    def temperature_delta_K(self, run: Run) -> float:
+        """``run``'s temperature above :attr:`reference_temperature_C` (K; 0 when unknown)."""
+        t, ref = self.run_temperature_C(run), self.reference_temperature_C
+        return 0.0 if t is None or ref is None else t - ref

@@ -32,3 +32,4 @@ from ._kinematic import KinematicHarmonics as KinematicHarmonics
 from ._parameter import Parameter as Parameter
 from ._recurrence import affine_scan as affine_scan, resolve_scan_method as resolve_scan_method
 from ._speed import SpeedDependence as SpeedDependence
+from ._temperature import TemperatureDependence as TemperatureDependence

@@ -26,6 +26,7 @@ from ._kinematic import KinematicHarmonics
 from ._parameter import Parameter
 from ._recurrence import ScanMethod
 from ._speed import SpeedDependence
+from ._temperature import TemperatureDependence
 
 COMPONENTS = ("elastic", "friction", "geometric", "creep", "kinematic", "drift", "offset")
 
@@ -44,6 +45,8 @@ class CampaignModel(eqx.Module):
     creep: Creep | None = None
     kinematic: KinematicHarmonics | None = None
     speed: SpeedDependence | None = None
+    #: compliance and friction level changing with the run's temperature (inputs carry ΔT)
+    temperature: TemperatureDependence | None = None
     drift: bool = eqx.field(static=True, default=False)
     drift_shape: str = eqx.field(static=True, default="linear")  # _drift.SHAPES
     torque_offset: bool = eqx.field(static=True, default=False)
@@ -75,6 +78,8 @@ class CampaignModel(eqx.Module):
             out += self.creep.parameters()
         if self.speed is not None and self.n_te:
             out += self.speed.parameters()
+        if self.temperature is not None:
+            out += self.temperature.parameters()
         if self.torque_offset:
             out += (Parameter("torque_offset", "real", "N·m", "torque-sensor offset"),)
         if self.free_friction_start and self.n_hysteresis:
@@ -92,13 +97,21 @@ class CampaignModel(eqx.Module):
         return out
 
     # --- one run -------------------------------------------------------------------------
+    def _at_temperature(self, params, data):
+        """(parameters with the friction level at the run's temperature, compliance factor)."""
+        if self.temperature is None:
+            return params, 1.0
+        dT = data.temperature_delta_K
+        return self.temperature.friction_params(params, dT), self.temperature.compliance_factor(params, dT)
+
     def _hysteresis_drive(self, params, data: HysteresisInput, run_index: int, hyst_index: int):
         """(applied torque, mesh torque, friction torque, creep, drift, offset) of one hysteresis run."""
         torque = data.torque_Nm
         if self.torque_offset:
             torque = torque - params["torque_offset"]
         z0 = jnp.atleast_1d(params["friction_start"])[hyst_index] if self.free_friction_start else None
-        friction_torque = self.friction.friction_torque(params, torque, self.scan, z0)
+        friction_params, _ = self._at_temperature(params, data)
+        friction_torque = self.friction.friction_torque(friction_params, torque, self.scan, z0)
         mesh = torque - friction_torque
         zeros = jnp.zeros_like(torque)
         creep = zeros if self.creep is None else self.creep.twist(params, data.time_s, mesh, self.scan)
@@ -111,15 +124,16 @@ class CampaignModel(eqx.Module):
     def hysteresis_components(self, params, data: HysteresisInput, run_index: int, hyst_index: int):
         """Components (rad) of one hysteresis run, plus ``total``, ``mesh_torque`` and ``friction_state``."""
         torque, mesh, friction_torque, creep, drift, offset = self._hysteresis_drive(params, data, run_index, hyst_index)
-        elastic = self.compliance(params, torque)
+        friction_params, factor = self._at_temperature(params, data)
+        elastic = factor * self.compliance(params, torque)
         geometric = self.backlash(params, torque)
-        friction = self.compliance(params, mesh) + self.backlash(params, mesh) - elastic - geometric
+        friction = factor * self.compliance(params, mesh) + self.backlash(params, mesh) - elastic - geometric
         zeros = jnp.zeros_like(torque)
         return self._finish(
             dict(elastic=elastic, friction=friction, geometric=geometric, creep=creep,
                  kinematic=zeros, drift=drift, offset=offset),
             mesh_torque=mesh,
-            friction_state=friction_torque / params["friction_torque"],
+            friction_state=friction_torque / friction_params["friction_torque"],
         )
 
     def hysteresis_total(self, params, data: HysteresisInput, run_index: int, hyst_index: int):
@@ -127,7 +141,8 @@ class CampaignModel(eqx.Module):
         the parts that cancel in it (elastic + friction + geometric = spring and gap at the mesh
         torque) — what a fit evaluates, one compliance and one backlash pass fewer."""
         _, mesh, _, creep, drift, offset = self._hysteresis_drive(params, data, run_index, hyst_index)
-        return self.compliance(params, mesh) + self.backlash(params, mesh) + creep + drift + offset
+        _, factor = self._at_temperature(params, data)
+        return factor * self.compliance(params, mesh) + self.backlash(params, mesh) + creep + drift + offset
 
     def te_components(self, params, data: TEInput, run_index: int):
         """Components (rad) of one TE run over its output angles, plus ``total`` and ``mesh_torque``."""
@@ -137,11 +152,11 @@ class CampaignModel(eqx.Module):
         if self.torque_offset:
             # the sensor reads the load + offset: the true load magnitude is reduced by it
             load = data.direction * jnp.abs(data.torque_Nm - params["torque_offset"]) * ones
-        friction_level = self.friction.sliding_level(params, load)
-        factor = 1.0
+        friction_params, factor = self._at_temperature(params, data)
+        friction_level = self.friction.sliding_level(friction_params, load)
         if self.speed is not None:
             friction_level = self.speed.friction_torque(params, friction_level, data.speed_rad_s)
-            factor = self.speed.compliance_factor(params, data.speed_rad_s)
+            factor = factor * self.speed.compliance_factor(params, data.speed_rad_s)
         mesh = load + data.direction * friction_level
 
         def spring(t):

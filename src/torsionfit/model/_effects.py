@@ -8,13 +8,14 @@ from ._drift import SHAPES as DRIFT_SHAPES
 from ._friction import DahlFriction, MaxwellSlipFriction
 from ._kinematic import KinematicHarmonics
 from ._speed import SpeedDependence
+from ._temperature import TemperatureDependence
 
 
 def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="auto", free_friction_start: bool = False) -> CampaignModel:
     """The base model plus the extensions named in ``effects`` (the catalog names of
     DESIGN §3: ``stiffness_nonlinearity``, ``rate_dependence``, ``kinematic_error``,
     ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``,
-    ``load_dependent_friction``, ``distributed_friction``), as a bench file's ``[effects]``
+    ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``), as a bench file's ``[effects]``
     table or a user's switches give them."""
     compliance = LinearCompliance()
     nonlin = effects.get("stiffness_nonlinearity")
@@ -45,6 +46,7 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         opts = sp if isinstance(sp, dict) else {}
         speed = SpeedDependence(viscous=bool(opts.get("viscous", True)), compliance_order=int(opts.get("compliance_order", 0)))
     return CampaignModel(
+        temperature=_temperature(effects.get("temperature_dependence", False)),
         free_friction_start=free_friction_start,
         friction=_friction(effects),
         run_kinds=tuple(run_kinds),
@@ -76,3 +78,14 @@ def _friction(effects: dict):
     if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 64:
         raise InputError(f"[effects].distributed_friction: expected true or {{elements = N}} with 1 ≤ N ≤ 64, got {dist!r}")
     return MaxwellSlipFriction(n_elements=n, load_dependent=load)
+
+
+def _temperature(value):
+    """``temperature_dependence``: true (compliance and friction level) or {friction = false}."""
+    if value is False or value is None:
+        return None
+    if value is True:
+        return TemperatureDependence()
+    if isinstance(value, dict) and set(value) <= {"friction"} and isinstance(value.get("friction", True), bool):
+        return TemperatureDependence(friction=value.get("friction", True))
+    raise InputError(f"[effects].temperature_dependence: expected true, false or {{friction = false}}, got {value!r}")

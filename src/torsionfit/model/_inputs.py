@@ -14,6 +14,8 @@ class HysteresisInput(eqx.Module):
 
     time_s: jnp.ndarray
     torque_Nm: jnp.ndarray
+    #: the run's temperature above the campaign's reference (K; 0: at the reference)
+    temperature_delta_K: jnp.ndarray = eqx.field(default_factory=lambda: jnp.asarray(0.0))
 
 
 class TEInput(eqx.Module):
@@ -25,13 +27,16 @@ class TEInput(eqx.Module):
     speed_rad_s: jnp.ndarray  # scalar, output speed ≥ 0
     direction: jnp.ndarray  # scalar, +1 forward, −1 backward
     zero_group: jnp.ndarray = eqx.field(default_factory=lambda: jnp.asarray(0))  # index into te_offset
+    #: the run's temperature above the campaign's reference (K; 0: at the reference)
+    temperature_delta_K: jnp.ndarray = eqx.field(default_factory=lambda: jnp.asarray(0.0))
 
 
-def hysteresis_input(time_s, torque_Nm) -> HysteresisInput:
-    return HysteresisInput(jnp.asarray(time_s, float), jnp.asarray(torque_Nm, float))
+def hysteresis_input(time_s, torque_Nm, temperature_delta_K: float = 0.0) -> HysteresisInput:
+    return HysteresisInput(jnp.asarray(time_s, float), jnp.asarray(torque_Nm, float), jnp.asarray(float(temperature_delta_K)))
 
 
-def te_input(output_angle_rad, torque_Nm, speed_rpm, direction, time_s=None, zero_group: int = 0) -> TEInput:
+def te_input(output_angle_rad, torque_Nm, speed_rpm, direction, time_s=None, zero_group: int = 0,
+             temperature_delta_K: float = 0.0) -> TEInput:
     phi = np.asarray(output_angle_rad, float)
     if time_s is None:  # constant speed: time follows from the angle travelled (either direction)
         speed = max(speed_rpm * 2 * np.pi / 60, 1e-12)
@@ -43,4 +48,5 @@ def te_input(output_angle_rad, torque_Nm, speed_rpm, direction, time_s=None, zer
         jnp.asarray(speed_rpm * 2 * np.pi / 60.0),
         jnp.asarray(float(direction)),
         jnp.asarray(int(zero_group)),
+        jnp.asarray(float(temperature_delta_K)),
     )

@@ -412,24 +412,26 @@ def fit_json(fit: CampaignFit, command: str | None = None) -> dict:
         "parameters": physics,
         "diagnostics": fit.diagnostics,
         "rmse": {name: {"value": v, "unit": "arcsec"} for name, v in fit.rmse_arcsec.items()},
-        **_runs_json(fit.campaign),
+        **_runs_json(fit.campaign, problem.model.temperature is not None),
         "provenance": provenance(fit.seed, command),
     }
 
 
-def _runs_json(campaign) -> dict:
-    """The fitted runs' conditions: kind, nominal temperature (°C, the manifest's
-    ``temperature_C``; None when not given) and, for TE runs, load, speed, direction and zero
-    group; and the distinct temperatures the fit spans (no term makes stiffness depend on them)."""
+def _runs_json(campaign, temperature_term: bool) -> dict:
+    """The fitted runs' conditions: kind, temperature (°C: the manifest's ``temperature_C``,
+    else the median of the run's temperature column; None when neither is given) and, for TE
+    runs, load, speed, direction and zero group; the distinct temperatures the fit spans; and,
+    when the model has the temperature term, the reference temperature its metrics are at."""
     runs = {}
     for run in campaign.runs:
-        entry = {"kind": run.kind, "temperature_C": run.nominal_temperature_C}
+        entry = {"kind": run.kind, "temperature_C": campaign.run_temperature_C(run)}
         if run.kind == "transmission_error":
             entry |= {"torque_Nm": run.torque_Nm, "speed_rpm": run.speed_rpm,
                       "direction": "forward" if run.direction > 0 else "backward", "zero_group": run.zero_group}
         runs[run.name] = entry
-    temperatures = sorted({r.nominal_temperature_C for r in campaign.runs if r.nominal_temperature_C is not None})
-    return {"runs": runs, "temperatures_C": temperatures}
+    temperatures = sorted({t for t in map(campaign.run_temperature_C, campaign.runs) if t is not None})
+    return {"runs": runs, "temperatures_C": temperatures,
+            "reference_temperature_C": campaign.reference_temperature_C if temperature_term else None}
 
 
 def summary_table(doc: dict) -> str:
