@@ -21,7 +21,7 @@ run: $(BIN)/.installed
 test: $(BIN)/.installed
 	$(BIN)/python -m pytest -q tests/test_batch_sampler.py
 	$(BIN)/python -m pytest -q tests/test_nuts.py
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile --ignore tests/test_batch_sampler.py --ignore tests/test_nuts.py
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=15 --ignore tests/test_batch_sampler.py --ignore tests/test_nuts.py
 
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_hysteresis_scan.py

@@ -162,3 +162,25 @@ def test_a_signature_sees_level_differences_between_runs_that_share_their_zero()
 
     own = [replace(v, local_design=np.ones((n, 1))) for v in views]
     assert regression_evidence("speed", own, cols, "").dof == 0
+
+
+def test_noise_estimate_is_the_residuals_not_the_torque_noise_model():
+    """The noise estimate is the residual's own (variogram, floored, marginal over ρ): the fit's
+    errors-in-variables variance — torque noise times a steep gap's slope — is not added, so the
+    estimate cannot exceed the residual it was read from (on a measured loop it had: 2480″ against
+    an RMSE of 1185″, and every leftover became a note), and it is capped at the residual's RMS."""
+    from types import SimpleNamespace
+
+    from torsionfit.diagnose._loop import noise_rmse_arcsec
+    from torsionfit.units import ANGLE_UNITS
+
+    arcsec = ANGLE_UNITS["arcsec"]
+    n = 1000
+    eiv = np.zeros(n)
+    eiv[490:510] = (5000.0 * arcsec) ** 2  # the gap crossing
+    residual = np.random.default_rng(0).normal(0.0, 3.0 * arcsec, n)
+    run = SimpleNamespace(scale=np.sqrt(eiv + (2.0 * arcsec) ** 2), rho=0.6, eiv_var=eiv, residual=residual)
+    assert noise_rmse_arcsec(SimpleNamespace(runs=[run])) == pytest.approx(2.0 / np.sqrt(1 - 0.36), rel=1e-9)
+    # a residual of steps: the AR(1) extrapolation overshoots; the estimate stops at the residual
+    steps = SimpleNamespace(scale=np.full(n, 2.0 * arcsec), rho=0.95, eiv_var=np.zeros(n), residual=residual)
+    assert noise_rmse_arcsec(SimpleNamespace(runs=[steps])) == pytest.approx(np.sqrt(np.mean(residual**2)) / arcsec, rel=1e-9)

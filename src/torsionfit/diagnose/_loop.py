@@ -189,11 +189,22 @@ def judge_leftovers(leftovers: list, rmse_arcsec: float, noise_arcsec: float, op
 
 
 def noise_rmse_arcsec(ctx: FitContext) -> float:
-    """RMS of the measurement noise over all samples (arcsec): per run the AR(1) noise the
-    signatures whiten with — innovation sd from the residual's short-lag variogram, floored by the
-    encoder, plus the errors-in-variables part — as a marginal sd, σ_i/√(1 − ρ²)."""
-    var = np.concatenate([r.scale**2 / (1.0 - r.rho**2) for r in ctx.runs])
-    return float(np.sqrt(np.mean(var))) / ARCSEC
+    """RMS of the measurement noise over all samples (arcsec): per run the innovation sd from the
+    residual's short-lag variogram, floored by the encoder, as a marginal sd σ/√(1 − ρ²).
+
+    The fit's errors-in-variables variance (torque noise × the model's slope) is left out: the
+    torque noise's effect on the angle is already in the residual the variogram reads, and near
+    a steep gap crossing the model's slope makes that variance large enough to put the "noise"
+    above the residual itself — which turned real findings into notes. For the same reason each
+    run's estimate is capped at its residual's mean square: the AR(1) extrapolation from the
+    first two lags overshoots on a residual made of steps (stick-slip), and the noise is a part
+    of the residual, never more."""
+    var = []
+    for r in ctx.runs:
+        v = np.maximum(r.scale**2 - r.eiv_var, 0.0) / (1.0 - r.rho**2)
+        cap = float(np.mean(np.asarray(r.residual, float) ** 2))
+        var.append(v * min(1.0, cap / float(np.mean(v))) if np.mean(v) > 0 else v)
+    return float(np.sqrt(np.mean(np.concatenate(var)))) / ARCSEC
 
 
 def _periodic_search(ctx: FitContext, runs, variable, label: str, unit_scale: float, unit: str, alpha: float):
