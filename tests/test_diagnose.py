@@ -276,23 +276,16 @@ def test_clean_campaign_adds_nothing(tmp_path, seed):
 
 # --- two effects at once -------------------------------------------------------------------
 def two_effects_case(folder: Path) -> Case:
-    """Creep and a two-order kinematic error in base.toml."""
+    """Creep and a two-order kinematic error in base.toml: a case of the diagnose zoo
+    (scripts/diagnose_zoo.py, docs/diagnose/zoo.md), out of the suite for its length — each
+    effect alone is a test here, and two effects found in turn are tested on the TE campaign
+    below."""
     rng = np.random.default_rng(_seed("parameters", "two"))
     e1, t1, _ = _rate_dependence(rng)
     e2, t2, _ = _kinematic_error(rng)
     campaign, _ = _undeclared_campaign(folder, e1 | e2, t1 | t2, _seed("noise", "two"))
     print(t1 | t2)
     return Case(campaign, 7, e1 | e2, t1 | t2)
-
-
-def test_two_effects_are_both_found(tmp_path):
-    case = two_effects_case(tmp_path)
-    d = _diagnose(case.campaign, case.seed)
-    added = [s.effect for s in d.steps]
-    assert set(added) == {"rate_dependence", "kinematic_error"}, _summary(d)
-    assert {1, 39} <= set(d.final.effects["kinematic_error"]), _summary(d)
-    assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
-    _check_finite(d)
 
 
 # --- an effect outside the catalog -----------------------------------------------------------
@@ -407,7 +400,7 @@ def kinematic_speed_case(folder: Path, draw: int) -> Case:
     return Case(campaign, _seed("diagnose", "te-speed", draw) % 1000, effects, truth)
 
 
-@pytest.mark.parametrize("draw", [0, 1])
+@pytest.mark.parametrize("draw", [0])  # one draw in the suite for its length; others: kinematic_speed_case(…, draw)
 def test_kinematic_error_and_speed_dependence_are_both_found(tmp_path, draw):
     """Both effects in one TE campaign: the harmonics first (the larger signature), then the TE
     level that changes with speed — a difference between runs, which only a joint test of the
