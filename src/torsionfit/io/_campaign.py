@@ -1,5 +1,6 @@
 """In-memory campaign: one reducer, its bench, and its runs, all in SI units."""
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -142,10 +143,11 @@ class Campaign:
             return float(np.nanmedian(run.temperature_C))
         return None
 
-    @property
+    @functools.cached_property
     def reference_temperature_C(self) -> float | None:
         """The temperature a temperature-dependent model's metrics refer to (°C): the median of
-        the distinct run temperatures; None when no run has one."""
+        the distinct run temperatures; None when no run has one. Computed once (the runs are
+        fixed): every run's ΔT reads it."""
         return reference_temperature_C(self.run_temperature_C(r) for r in self.runs)
 
     def temperature_delta_K(self, run: Run) -> float:

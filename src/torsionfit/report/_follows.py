@@ -11,6 +11,10 @@ is reported not converged (never a decision).
 
 import numpy as np
 
+from ..units import ANGLE_UNITS
+
+ARCSEC = ANGLE_UNITS["arcsec"]
+
 
 def straight_line_rmse(torque_Nm, angle_rad) -> float:
     """RMSE (rad) of the least-squares line angle = a + b·τ."""
@@ -23,7 +27,6 @@ def straight_line_rmse(torque_Nm, angle_rad) -> float:
 def runs_not_followed(runs, residuals) -> list[dict]:
     """Hysteresis runs whose residuals (rad, one array per run, the run's samples in order) are
     larger than the straight line's: ``[{"run", "rmse_arcsec", "line_rmse_arcsec"}, …]``."""
-    arcsec = np.pi / 180.0 / 3600.0
     out = []
     for run, e in zip(runs, residuals):
         e = np.asarray(e, float)
@@ -31,7 +34,7 @@ def runs_not_followed(runs, residuals) -> list[dict]:
             continue
         model, line = float(np.sqrt(np.mean(e**2))), straight_line_rmse(run.torque_Nm, run.angle_rad)
         if model > line:
-            out.append({"run": run.name, "rmse_arcsec": model / arcsec, "line_rmse_arcsec": line / arcsec})
+            out.append({"run": run.name, "rmse_arcsec": model / ARCSEC, "line_rmse_arcsec": line / ARCSEC})
     return out
 
 
