@@ -87,10 +87,10 @@ def _toml_value(v) -> str:
     raise TypeError(f"no TOML for {v!r}")
 
 
-def _bench_file(path: Path, effects: dict, truth: dict, drop_truth=(), base: Path = BASE) -> Path:
+def _bench_file(path: Path, effects: dict, truth: dict, drop_truth=(), base: Path = BASE, top: dict | None = None) -> Path:
     """``base`` with ``effects`` switched on and ``truth`` added to (``drop_truth`` removed from)
-    its ``[truth]``, written to ``path``."""
-    doc = tomllib.loads(base.read_text())
+    its ``[truth]``, top-level keys replaced by ``top``, written to ``path``."""
+    doc = tomllib.loads(base.read_text()) | (top or {})
     doc["truth"] = {k: v for k, v in doc["truth"].items() if k not in drop_truth} | truth
     doc["effects"] = effects
     lines = [f"{k} = {_toml_value(v)}" for k, v in doc.items() if not isinstance(v, (dict, list))]
@@ -103,10 +103,10 @@ def _bench_file(path: Path, effects: dict, truth: dict, drop_truth=(), base: Pat
     return path
 
 
-def _undeclared_campaign(tmp_path: Path, effects: dict, truth: dict, seed: int, drop_truth=(), base=BASE):
+def _undeclared_campaign(tmp_path: Path, effects: dict, truth: dict, seed: int, drop_truth=(), base=BASE, top=None):
     """Simulate the bench, write the campaign, check that nothing written names an effect, read
     it back. Returns (campaign as read back, bench)."""
-    bench = load_bench(_bench_file(tmp_path / "bench.toml", effects, truth, drop_truth, base))
+    bench = load_bench(_bench_file(tmp_path / "bench.toml", effects, truth, drop_truth, base, top))
     assert set(bench.effects) == set(effects)  # switched on in the bench …
     sim = simulate(bench, seed=seed)
     out = tmp_path / "campaign"
@@ -389,13 +389,17 @@ def test_saturating_drift_closes_to_the_noise(tmp_path):
 TE_SPEED_BENCH = BENCHES / "te_speed.toml"  # ten TE runs: two loads, 2–12 rpm, both directions
 
 
-def kinematic_speed_case(folder: Path, draw: int) -> Case:
+def kinematic_speed_case(folder: Path, draw: int, samples_per_rev: int | None = None) -> Case:
     """Orders 1, 2, 39 and viscous friction 0.2–1.0 N·m/rpm (1–7″ of TE level between 2 and
-    12 rpm against 0.4″ noise) in te_speed.toml; ``draw`` picks the parameters and the noise."""
+    12 rpm against 0.4″ noise) in te_speed.toml; ``draw`` picks the parameters and the noise;
+    ``samples_per_rev`` replaces the bench's 720 (the suite's case: 360, still over 9 per
+    period of order 39)."""
     rng = np.random.default_rng(_seed("parameters", "te-speed", draw))
     truth = _kinematic_truth(rng) | {"viscous_friction_Nm_per_rpm": float(rng.uniform(0.2, 1.0))}
     effects = {"kinematic_error": [1, 2, 39], "speed_dependence": {"viscous": True, "compliance_order": 0}}
-    campaign, _ = _undeclared_campaign(folder, effects, truth, _seed("noise", "te-speed", draw), base=TE_SPEED_BENCH)
+    top = {"te_samples_per_rev": samples_per_rev} if samples_per_rev else None
+    campaign, _ = _undeclared_campaign(folder, effects, truth, _seed("noise", "te-speed", draw), base=TE_SPEED_BENCH,
+                                       top=top)
     print(truth)
     return Case(campaign, _seed("diagnose", "te-speed", draw) % 1000, effects, truth)
 
@@ -407,7 +411,7 @@ def test_kinematic_error_and_speed_dependence_are_both_found(tmp_path, draw):
     runs sees (their zero is shared) — and the residual ends at the noise (below one encoder
     step) with nothing left. (The kinematic error alone, te_kinematic_case, is the diagnose
     zoo's: scripts/diagnose_zoo.py.)"""
-    case = kinematic_speed_case(tmp_path, draw)
+    case = kinematic_speed_case(tmp_path, draw, samples_per_rev=360)
     d = _diagnose(case.campaign, case.seed)
     added = [s.effect for s in d.steps]
     assert set(added) == {"kinematic_error", "speed_dependence"}, _summary(d)

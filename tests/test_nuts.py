@@ -3,6 +3,7 @@ Neal's funnel: divergences flagged, never a converged answer), its coordinates f
 parameters, exact resume, the ArviZ tree and fit.json of a NUTS fit, and ``--sampler auto``'s
 choice. Recovery on SYNTHETIC bench campaigns and agreement with emcee are slow tests."""
 
+import dataclasses
 import json
 import warnings
 from pathlib import Path
@@ -131,6 +132,82 @@ def test_noise_coordinates_round_trip_with_their_log_jacobian():
     ident = Coordinates.of(toy)
     x = jnp.array([1.0, -2.0, 3.0])
     assert np.array_equal(ident.to_u(x)[0], x) and float(ident.to_u(x)[1]) == 0.0
+
+
+def _te_only_problem(kinds=("transmission_error",)):
+    """The fit's problem of a small SYNTHETIC TE campaign (stat_te_only.toml), optionally with
+    a hysteresis run of the statistics bench in front."""
+    from torsionfit.bench import load_bench, simulate
+    from torsionfit.report._pipeline import prepare_fit
+
+    campaign = simulate(load_bench(BENCHES / "stat_te_only.toml"), seed=1).campaign
+    if "hysteresis" in kinds:
+        loop = simulate(load_bench(BENCHES / "stat_rv_white.toml"), seed=1).campaign.hysteresis_runs[0]
+        campaign = dataclasses.replace(campaign, runs=(loop,) + campaign.runs)
+    return prepare_fit(campaign, FitOptions(progress=False))[2]
+
+
+def test_lost_motion_pair_of_a_te_only_campaign():
+    """A campaign without hysteresis runs fits the gap's closing as the share closed at no
+    load (no closing torque), and NUTS moves in w_a = log(β/2 + C·T_f) — what steady rotation
+    sees — and w_b = log(T_f/β): a bijection with |du/dw| = 1 that round-trips; a campaign
+    with a loop keeps τ_β, and u for both."""
+    from torsionfit.model import FrictionClosureBacklash, SmoothBacklash
+
+    problem = _te_only_problem()
+    assert isinstance(problem.model.backlash, FrictionClosureBacklash)
+    names = [p.name for p in problem.physics]
+    assert "gap_torque" not in names and "gap_closure" in names  # τ_β is never seen in steady rotation
+    i_gap, i_fric, i_k = (names.index(n) for n in ("gap", "friction_torque", "stiffness"))
+    u = jnp.asarray(np.random.default_rng(0).normal(size=problem.dim)).at[i_k].set(np.log(1.2e6))
+    coords = Coordinates.of(problem)
+    assert coords.lost_motion == (i_gap, i_fric, i_k)
+    coords = coords._with_compliance(u)
+    w = coords.from_u(u)
+    back, logjac = coords.to_u(w)
+    np.testing.assert_allclose(back, u, atol=1e-12)
+    beta, t_f = np.exp(u[i_gap]), np.exp(u[i_fric])
+    np.testing.assert_allclose(np.exp(w[i_gap]), beta / 2 + t_f / 1.2e6, rtol=1e-12)
+    np.testing.assert_allclose(w[i_fric], np.log(t_f / beta), rtol=1e-12)
+    plain = dataclasses.replace(coords, noise=(0, 0), ar1=(0, 0))  # the pair alone
+    jac = np.asarray(jax.jacfwd(lambda v: plain.to_u(v)[0])(w))
+    assert np.linalg.det(jac) == pytest.approx(1.0, rel=1e-9)  # volume-preserving ...
+    assert float(plain.to_u(w)[1]) == 0.0  # ... so no Jacobian term
+    assert float(logjac) == pytest.approx(float(dataclasses.replace(coords, lost_motion=()).to_u(w)[1]))
+    with_loop = _te_only_problem(("hysteresis",))
+    assert isinstance(with_loop.model.backlash, SmoothBacklash)
+    assert "gap_torque" in [p.name for p in with_loop.physics]
+    assert Coordinates.of(with_loop).lost_motion == ()
+
+
+@pytest.mark.slow
+def test_nuts_follows_the_lost_motion_ridge_of_a_te_export(tmp_path):
+    """The SYNTHETIC TE export campaign (tests/benches/te_export.toml, block means of 8): gap
+    and friction only show together there. With the lost-motion coordinates and starts drawn
+    in the sampler's coordinates, the starts lie on the ridge, trajectories stay short and
+    nothing diverges — before, with the gap's closing torque free and starts drawn in u, the
+    chains spent their warm-up at the deepest trees (hundreds of leapfrog steps per draw)."""
+    from torsionfit.bench import load_bench, simulate, write_te_export
+    from torsionfit.fit import fit_map
+    from torsionfit.io import load_campaign
+    from torsionfit.report._pipeline import prepare_fit
+    from torsionfit.sample._nuts import _densities, _initial_positions
+
+    bench = load_bench(BENCHES / "te_export.toml")
+    campaign = load_campaign(write_te_export(simulate(bench), bench, tmp_path / "export"))
+    campaign, _, problem = prepare_fit(campaign, FitOptions(effects={"kinematic_error": [1, 2, 39]}, decimate=8))
+    m = fit_map(problem, [r.name for r in campaign.runs], n_starts=2, seed=1)
+    coords = Coordinates.of(problem).whitened(m.u, m.cov, problem)
+    assert coords.lost_motion
+    # the starts: Laplace draws in the sampler's coordinates land on the ridge
+    z = _initial_positions(problem, coords, 8, np.random.default_rng(0))
+    lp = np.asarray(_densities(problem, coords, jnp.asarray(z)))
+    lp_map = float(_densities(problem, coords, jnp.zeros((1, problem.dim)))[0])
+    assert np.all(lp > lp_map - 4 * problem.dim), lp - lp_map
+    res = run_nuts(problem, m, seed=0, n_chains=4, n_warmup=150, initial_draws=100, max_draws=100, progress=False)
+    steps = np.asarray(res.step_size)
+    assert res.n_divergent == 0 and steps.max() < 2 * steps.min(), steps
+    assert float(np.mean(res.n_leapfrog)) < 32, float(np.mean(res.n_leapfrog))
 
 
 def test_whitening_follows_the_curvature_of_the_density_sampled():

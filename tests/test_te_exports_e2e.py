@@ -156,21 +156,31 @@ def test_fit_json_runs_name_the_temperatures(export):
         "direction": "backward", "zero_group": "TE_486rpm_1000Nm_25C"}
 
 
+@pytest.fixture(scope="module")
+def declared_fit(export):
+    """The declared export fitted with the kinematic harmonics (Laplace; the default sampler's
+    run of this campaign is in docs/benchmarks.md)."""
+    from torsionfit.report import FitOptions, fit_campaign
+
+    _, _, manifest = export
+    return fit_campaign(load_campaign(manifest), FitOptions(
+        sampler="laplace", n_starts=2, laplace_draws=2000, metric_draws=400, progress=False,
+        effects={"kinematic_error": [1, 2, 39]}), seed=1)
+
+
 @pytest.mark.slow
-def test_declared_export_fit_recovers_the_stiffness(export):
-    """The declared export, fitted with the kinematic harmonics (Laplace: a NUTS run of this
-    campaign did not finish within 25 minutes on a loaded two-core machine): stiffness within
-    3 % of the truth and inside the 95 % HDI, the MAP converged; each test's zero comes back; K_d of the model
-    (against the no-load reference) is the truth's in both directions; fit.json names the
-    runs' temperatures (25 and 40 °C, fitted together: no temperature term)."""
-    from torsionfit.report import FitOptions, fit_campaign, fit_json
+def test_declared_export_fit_recovers_the_stiffness(export, declared_fit):
+    """The declared export, fitted with the kinematic harmonics: stiffness within 3 % of the
+    truth and inside the 95 % HDI, the MAP converged; each test's zero comes back; K_d of the
+    model (against the no-load reference) is the truth's in both directions; fit.json names
+    the runs' temperatures (25 and 40 °C, fitted together: no temperature term)."""
+    from torsionfit.report import fit_json
 
     _, sim, manifest = export
     campaign = load_campaign(manifest)
     derived = derived_metrics_for(campaign, sim.model)
     truth = dict(zip((s.name for s in derived.specs), np.asarray(derived.evaluate(sim.truth))))
-    fit = fit_campaign(campaign, FitOptions(sampler="laplace", n_starts=2, laplace_draws=2000, metric_draws=400,
-                                            progress=False, effects={"kinematic_error": [1, 2, 39]}), seed=1)
+    fit = declared_fit
     doc = json.loads(json.dumps(fit_json(fit)))
     assert doc["diagnostics"]["converged"], doc["diagnostics"]
     assert doc["temperatures_C"] == [25.0, 40.0] and doc["runs"]["TE_486rpm_1000Nm_25C-fw"]["temperature_C"] == 25.0
@@ -185,6 +195,34 @@ def test_declared_export_fit_recovers_the_stiffness(export):
         kd, true_kd = doc["metrics"][name], truth[name]
         assert true_kd == pytest.approx(K, rel=0.003)
         assert kd["mean"] == pytest.approx(true_kd, rel=0.03) and kd["hdi95"][0] <= true_kd <= kd["hdi95"][1], kd
+
+
+@pytest.mark.slow
+def test_accept_decides_the_declared_export(export, declared_fit, tmp_path, capsys):
+    """accept on the declared export: a spec below the truth (K = 200 N·m/arcmin, and K_d over
+    250–1000 N·m at 6 rpm) is accepted, one above it rejected, from the fitted posterior; the
+    command on the undeclared export stops (exit 2) with the one-line te_convention error."""
+    from torsionfit.accept import accept_campaign, parse_spec
+    from torsionfit.cli import main
+
+    def spec(limit):
+        return parse_spec({"p_accept": 0.95, "requirement": [
+            {"metric": "stiffness_elastic", "min": limit, "unit": "Nm/arcmin"},
+            {"metric": "kd", "min": limit, "unit": "Nm/arcmin", "torque_Nm": [250.0, 1000.0], "speed_rpm": [6.0, 6.0]},
+        ]}, "spec")
+
+    fit = declared_fit
+    for limit, decision in ((0.95 * K, "accept"), (1.05 * K, "reject")):
+        result = accept_campaign(fit.campaign, spec(limit), fit.options, fit=fit)
+        assert result.decision.decision == decision, result.decision.reason
+        assert result.decision.requirement_decisions == (decision, decision)
+    bench, sim, _ = export
+    undeclared = write_te_export(sim, bench, tmp_path / "undeclared", declare=False)
+    spec_file = tmp_path / "spec.toml"
+    spec_file.write_text('p_accept = 0.95\n[[requirement]]\nmetric = "stiffness_elastic"\nmin = 190.0\nunit = "Nm/arcmin"\n')
+    assert main(["accept", str(undeclared), "--spec", str(spec_file), "-o", str(tmp_path / "out"), "-q"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "te_convention" in err and err.startswith("torsionfit accept: error:"), err
 
 
 @pytest.mark.slow

@@ -374,7 +374,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spec", type=Path, required=True, help="spec file (TOML): p_accept and [[requirement]] tables")
     _add_output(p)
     _add_seed(p)
-    _add_sampler(p)
+    _add_sampler(p, choices=("emcee", "auto", "nuts", "laplace"),
+                 help="emcee posterior (default); auto or nuts as for fit; laplace: the MAP's Laplace "
+                      "approximation (fast screening). A posterior that does not converge gives indeterminate")
     _add_max_steps(p, help="cap on emcee steps; reaching it gives indeterminate")
     _add_with(p)
     _add_decimate(p)

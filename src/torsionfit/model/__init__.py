@@ -3,6 +3,7 @@
 
 from ._backlash import (
     AbstractBacklash as AbstractBacklash,
+    FrictionClosureBacklash as FrictionClosureBacklash,
     NoBacklash as NoBacklash,
     SmoothBacklash as SmoothBacklash,
 )

@@ -29,6 +29,29 @@ class SmoothBacklash(AbstractBacklash):
         return 0.5 * params["gap"] * jnp.tanh(mesh_torque_Nm / params["gap_torque"])
 
 
+class FrictionClosureBacklash(AbstractBacklash):
+    """``θ_g = (β/2)·tanh(atanh(q)·τ_m/T_f)``: :class:`SmoothBacklash` with its closing torque
+    τ_β = T_f/atanh(q) given by q, the share of the gap closed at the sliding friction T_f
+    (``friction_torque``) — the gap's state in a no-load TE run.
+
+    The fitted backlash of campaigns without a hysteresis run. In steady rotation the mesh
+    torque is the load plus the sliding friction and never passes through zero: loaded runs
+    see the gap closed, no-load runs see q·β, and nothing sees τ_β itself. In τ_β the
+    posterior is a curved ridge between "closed" and "wide gap, slowly closing" along which
+    neither emcee nor NUTS converges in useful time; in q it is the prior where the data
+    cannot resolve the no-load closure and a bump where they can."""
+
+    def parameters(self):
+        return (
+            Parameter("gap", "positive", "rad", "geometric gap β (lost motion of the mesh)"),
+            Parameter("gap_closure", "unit_interval", "1", "share q of the gap closed by the sliding friction alone"),
+        )
+
+    def __call__(self, params, mesh_torque_Nm):
+        rate = jnp.arctanh(params["gap_closure"]) / params["friction_torque"]
+        return 0.5 * params["gap"] * jnp.tanh(mesh_torque_Nm * rate)
+
+
 class NoBacklash(AbstractBacklash):
     """A gap-free mesh (θ_g = 0); for tests and gap-free designs."""
 

@@ -1,6 +1,7 @@
 """Switching model extensions on by name (the effects catalog's names, DESIGN §3)."""
 
 from .._errors import InputError
+from ._backlash import FrictionClosureBacklash, SmoothBacklash
 from ._campaign_model import CampaignModel
 from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, ThreeSegmentCompliance
 from ._creep import Creep
@@ -11,12 +12,16 @@ from ._speed import SpeedDependence
 from ._temperature import TemperatureDependence
 
 
-def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="auto", free_friction_start: bool = False) -> CampaignModel:
+def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="auto", free_friction_start: bool = False,
+                       fitted: bool = False) -> CampaignModel:
     """The base model plus the extensions named in ``effects`` (the catalog names of
     DESIGN §3: ``stiffness_nonlinearity``, ``rate_dependence``, ``kinematic_error``,
     ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``,
     ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``), as a bench file's ``[effects]``
-    table or a user's switches give them."""
+    table or a user's switches give them. ``fitted``: the model a fit estimates, whose gap
+    is :class:`FrictionClosureBacklash` when no run is a hysteresis run (the same curve, with the
+    share of the gap closed at no load in place of a closing torque the data cannot see); a
+    simulation keeps :class:`SmoothBacklash`."""
     compliance = LinearCompliance()
     nonlin = effects.get("stiffness_nonlinearity")
     if nonlin in (True, "three_segment"):
@@ -45,7 +50,10 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     if sp:
         opts = sp if isinstance(sp, dict) else {}
         speed = SpeedDependence(viscous=bool(opts.get("viscous", True)), compliance_order=int(opts.get("compliance_order", 0)))
+    closed = fitted and "hysteresis" not in tuple(run_kinds)
+    backlash = FrictionClosureBacklash() if closed else SmoothBacklash()
     return CampaignModel(
+        backlash=backlash,
         temperature=_temperature(effects.get("temperature_dependence", False)),
         free_friction_start=free_friction_start,
         friction=_friction(effects),

@@ -131,7 +131,8 @@ def _residuals(problem, u):
 def campaign_model(campaign: Campaign, options: FitOptions = FitOptions()):
     """The model :func:`fit_campaign` fits to ``campaign`` with ``options``."""
     kinds = [r.kind for r in campaign.runs]
-    return model_with_effects(kinds, options.effects, campaign.reducer.rated_torque_Nm, free_friction_start=True)
+    return model_with_effects(kinds, options.effects, campaign.reducer.rated_torque_Nm, free_friction_start=True,
+                              fitted=True)
 
 
 @in_float64

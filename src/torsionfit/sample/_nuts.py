@@ -13,8 +13,8 @@ Choices, and why:
   one value-and-gradient pass, as BlackJAX's own), so a trajectory that leaves the support
   ends as a divergence, never with NaN coordinates.
 - **Chains**: ``n_chains`` (4) independent chains, vmapped (one compiled program evaluates
-  all of them), started from draws of the MAP's Laplace approximation N(u_MAP, cov) — cov
-  regularised as for emcee's walkers, each draw re-drawn until finite. Independent chains
+  all of them), started from draws of the MAP's Laplace approximation taken in the sampler's
+  own coordinates (z ~ N(0, I), below), each draw re-drawn until finite. Independent chains
   from dispersed starts are what R̂ needs (emcee's walkers are not independent).
 - **Adaptation**: NUTS moves in coordinates whitened by the curvature of the density it
   samples at the MAP (and, for the noise parameters, reshaped: :class:`Coordinates`), so the
@@ -49,6 +49,7 @@ Choices, and why:
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 import time
@@ -65,7 +66,7 @@ import numpy as np
 import xarray as xr
 
 from .._x64 import in_float64
-from ._emcee import ConvergenceWarning, SampleResult, _regularised_cov, initial_walkers
+from ._emcee import ConvergenceWarning, SampleResult, _regularised_cov
 
 __all__ = ["NutsResult", "chain_diagnostics", "run_nuts"]
 
@@ -128,6 +129,15 @@ class Coordinates(eqx.Module):
     N_r is the run's sample count times the problem's likelihood power q (a likelihood raised
     to q < 1 for misfit sees N·q samples' worth: its resolutions are coarser).
 
+    - gap β and friction level T_f of a campaign without hysteresis runs (TE only; its gap is
+      :class:`~torsionfit.model.FrictionClosureBacklash`): in steady rotation both only shift TE by
+      ±(β/2 + C·T_f) between the directions (C = 1/K the compliance), so the data see that sum
+      and not its split — in (log β, log T_f) a curved ridge between the priors' tails
+      (on the SYNTHETIC TE export campaign of the tests: hundreds of leapfrog steps per draw
+      and chains that disagree). NUTS moves instead in w_a = log(β/2 + C·T_f) and w_b = log T_f − log β
+      (C from the MAP's stiffness; a volume-preserving map, |du/dw| = 1), where the ridge is
+      a straight line w_a = const.
+
     The log-density in w adds log |du/dw| (by JAX, element-wise).
 
     NUTS itself moves in z, w whitened by the Laplace approximation: w = w_MAP + L z, L the
@@ -143,6 +153,9 @@ class Coordinates(eqx.Module):
     ar1_scale: jnp.ndarray  # c_r per AR(1) run
     shift: jnp.ndarray | None = None  # w_MAP (None: z = w)
     chol: jnp.ndarray | None = None  # L
+    #: (index of log β, of log T_f, of log K) in u for the lost-motion pair, or () without it
+    lost_motion: tuple = eqx.field(static=True, default=())
+    log_compliance: jnp.ndarray | None = None  # log C = −log K at the MAP (rad/N·m)
 
     @staticmethod
     def of(problem) -> "Coordinates":
@@ -156,17 +169,23 @@ class Coordinates(eqx.Module):
         ar1_counts = counts[np.flatnonzero(np.asarray(problem.ar1, dtype=bool))]
         return Coordinates((n, n + r), (n + r, n + r + int(problem.n_ar1)),
                            jnp.asarray(np.log(floors) + 0.25 * np.log(2.0 / counts)),
-                           jnp.asarray(1.0 / np.sqrt(ar1_counts)))
+                           jnp.asarray(1.0 / np.sqrt(ar1_counts)), lost_motion=_lost_motion_pair(problem))
 
     def whitened(self, u_map, cov_u, problem=None) -> "Coordinates":
         """These coordinates, whitened by N(u_map, cov_u) (cov regularised, mapped to w); with
         ``problem``, by the curvature of its log-density in w at the MAP instead
         (:func:`_curvature_cov`), which is what NUTS samples — e.g. a likelihood tempered for
         misfit, whose noise parameters are ~√k wider than the MAP's Laplace covariance says."""
+        self = self._with_compliance(u_map)
         w_map = self.from_u(jnp.asarray(u_map, dtype=float))
         jac = np.asarray(self.jacobian_diag(w_map))
         jac = np.where(np.isfinite(jac) & (np.abs(jac) > 0), jac, 1.0)
-        cov_w = _regularised_cov(np.asarray(cov_u, dtype=float) / np.outer(jac, jac))
+        cov_w = np.asarray(cov_u, dtype=float) / np.outer(jac, jac)
+        if self.lost_motion:  # the pair's block: cov_w = J cov_u Jᵀ with J = dw/du
+            j = np.eye(len(jac))
+            j[np.ix_(self.lost_motion[:2], self.lost_motion[:2])] = np.asarray(self._pair_dw_du(jnp.asarray(u_map)))
+            cov_w = j @ cov_w @ j.T
+        cov_w = _regularised_cov(cov_w)
         if problem is not None:
             cov_w = _curvature_cov(problem, self, w_map, cov_w)
         return eqx.tree_at(lambda c: (c.shift, c.chol), self, (w_map, jnp.asarray(np.linalg.cholesky(cov_w))),
@@ -202,7 +221,25 @@ class Coordinates(eqx.Module):
             wr = w[c:d]
             u = u.at[c:d].set(jax.vmap(self._ar1_u)(wr, self.ar1_scale))
             logjac = logjac + jnp.sum(jnp.log(jnp.abs(jax.vmap(jax.grad(self._ar1_u))(wr, self.ar1_scale))))
+        if self.lost_motion:  # volume-preserving: no Jacobian term
+            i_gap, i_fric, _ = self.lost_motion
+            log_gap = w[i_gap] - jnp.logaddexp(-jnp.log(2.0), w[i_fric] + self.log_compliance)
+            u = u.at[i_gap].set(log_gap).at[i_fric].set(log_gap + w[i_fric])
         return u, logjac
+
+    def _with_compliance(self, u_map) -> "Coordinates":
+        if not self.lost_motion:
+            return self
+        log_c = -jnp.asarray(np.asarray(u_map, dtype=float)[self.lost_motion[2]])
+        return eqx.tree_at(lambda c: c.log_compliance, self, log_c, is_leaf=lambda x: x is None)
+
+    def _pair_w(self, log_gap, log_fric):
+        return jnp.logaddexp(log_gap - jnp.log(2.0), log_fric + self.log_compliance), log_fric - log_gap
+
+    def _pair_dw_du(self, u):
+        """d(w_a, w_b)/d(log β, log T_f) at ``u`` (2 × 2)."""
+        i_gap, i_fric, _ = self.lost_motion
+        return jnp.stack(jax.jacfwd(lambda v: jnp.stack(self._pair_w(v[0], v[1])))(jnp.stack([u[i_gap], u[i_fric]])))
 
     def from_u(self, u):
         """w of u (the inverse of :meth:`to_u`)."""
@@ -215,14 +252,38 @@ class Coordinates(eqx.Module):
             rho = jax.nn.sigmoid(u[c:d])
             atanh = 0.5 * (jnp.log1p(rho) + jax.nn.softplus(u[c:d]))  # 1 − ρ = sigmoid(−u)
             w = w.at[c:d].set(self._softplus_inv(atanh / self.ar1_scale))
+        if self.lost_motion:
+            i_gap, i_fric, _ = self.lost_motion
+            wa, wb = self._pair_w(u[i_gap], u[i_fric])
+            w = w.at[i_gap].set(wa).at[i_fric].set(wb)
         if self.chol is None:
             return w
         return jax.scipy.linalg.solve_triangular(self.chol, w - self.shift, lower=True)
 
     def jacobian_diag(self, w):
-        """du/dw per entry (1 outside the noise parameters) of the unwhitened coordinates."""
-        plain = eqx.tree_at(lambda c: (c.shift, c.chol), self, (None, None), is_leaf=lambda x: x is None)
+        """du/dw per entry (1 outside the noise parameters) of the unwhitened coordinates; the
+        lost-motion pair (not element-wise) counts as 1 here (:meth:`whitened` maps its block)."""
+        plain = dataclasses.replace(self, shift=None, chol=None, lost_motion=())
         return jax.jvp(lambda v: plain.to_u(v)[0], (w,), (jnp.ones_like(w),))[1]
+
+
+def _lost_motion_pair(problem) -> tuple:
+    """(u index of the gap, of the friction level, of the stiffness) when ``problem`` is a
+    campaign without hysteresis runs (its gap: :class:`~torsionfit.model.FrictionClosureBacklash`)
+    and whose compliance is one stiffness; else ()."""
+    from ..model import FrictionClosureBacklash
+
+    model = getattr(problem, "model", None)
+    if model is None or model.n_hysteresis or not isinstance(model.backlash, FrictionClosureBacklash):
+        return ()
+    index, i = {}, 0
+    for p in problem.physics:
+        if p.size == 1:
+            index[p.name] = i
+        i += p.size
+    if not all(k in index for k in ("gap", "friction_torque", "stiffness")):
+        return ()
+    return index["gap"], index["friction_torque"], index["stiffness"]
 
 
 # --- the whitening: the curvature of the density sampled ----------------------------------------
@@ -345,6 +406,28 @@ def _sample_block(problem, coords, key, states, step_size, imm, n: int):
 
 
 @eqx.filter_jit
+def _densities(problem, coords, positions):
+    return jax.vmap(partial(_finite_density, problem, coords))(positions)
+
+
+def _initial_positions(problem, coords, n_chains: int, rng: np.random.Generator, max_rounds: int = 100) -> np.ndarray:
+    """(n_chains, dim) starts z ~ N(0, I) — the Laplace approximation in the sampler's own
+    coordinates, where a ridge that is curved in u is straight (a Gaussian draw in u along
+    its tangent lands far off it: one chain of four then spent its whole warm-up at the
+    deepest trees) — each re-drawn until its log-density is finite."""
+    dim = int(problem.dim)
+    z = np.zeros((n_chains, dim))
+    todo = np.ones(n_chains, dtype=bool)
+    for _ in range(max_rounds):
+        z[todo] = rng.standard_normal((int(todo.sum()), dim))
+        todo = ~np.isfinite(np.asarray(_densities(problem, coords, jnp.asarray(z))))
+        if not todo.any():
+            return z
+    raise RuntimeError(f"{int(todo.sum())} of {n_chains} NUTS chains had a non-finite log-density in {max_rounds} "
+                       "draws from the Laplace approximation; check the MAP fit")
+
+
+@eqx.filter_jit
 def _init_states(problem, coords, positions):
     return jax.vmap(lambda p: _bj().nuts.init(p, _log_density_fn(problem, coords)))(positions)
 
@@ -427,11 +510,9 @@ def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int
     key = jax.random.PRNGKey(seed)
     k_warm, k_sample = jax.random.split(key)
     if stored is None:
-        cov = _regularised_cov(map_result.cov)
-        start = initial_walkers(problem, map_result.u, cov, n_chains, np.random.default_rng(seed))
         # whitened by the Laplace approximation, the first inverse mass matrix is I; NUTS's
         # step size for a well-preconditioned Gaussian in d dimensions is of order d^(-1/4)
-        start_w = jax.vmap(coords.from_u)(jnp.asarray(start))
+        start_w = jnp.asarray(_initial_positions(problem, coords, n_chains, np.random.default_rng(seed)))
         say(f"warm-up: {n_chains} chains × {n_warmup} steps (dense mass matrix from the Laplace covariance)")
         states, step_size, imm, warm_leapfrog = _warmup(
             problem, coords, jax.random.split(k_warm, n_chains), start_w, jnp.eye(dim),
