@@ -239,7 +239,7 @@ class Coordinates(eqx.Module):
     def _pair_dw_du(self, u):
         """d(w_a, w_b)/d(log β, log T_f) at ``u`` (2 × 2)."""
         i_gap, i_fric, _ = self.lost_motion
-        return jnp.stack(jax.jacfwd(lambda v: jnp.stack(self._pair_w(v[0], v[1])))(jnp.stack([u[i_gap], u[i_fric]])))
+        return jax.jacfwd(lambda v: jnp.stack(self._pair_w(v[0], v[1])))(jnp.stack([u[i_gap], u[i_fric]]))
 
     def from_u(self, u):
         """w of u (the inverse of :meth:`to_u`)."""
@@ -268,22 +268,18 @@ class Coordinates(eqx.Module):
 
 
 def _lost_motion_pair(problem) -> tuple:
-    """(u index of the gap, of the friction level, of the stiffness) when ``problem`` is a
-    campaign without hysteresis runs (its gap: :class:`~torsionfit.model.FrictionClosureBacklash`)
-    and whose compliance is one stiffness; else ()."""
+    """(u index of the gap, of the friction level, of the stiffness) when ``problem``'s gap is
+    :class:`~torsionfit.model.FrictionClosureBacklash` (a campaign without hysteresis runs) and
+    its compliance is one stiffness; else ()."""
     from ..model import FrictionClosureBacklash
 
     model = getattr(problem, "model", None)
-    if model is None or model.n_hysteresis or not isinstance(model.backlash, FrictionClosureBacklash):
+    if model is None or not isinstance(model.backlash, FrictionClosureBacklash):
         return ()
-    index, i = {}, 0
-    for p in problem.physics:
-        if p.size == 1:
-            index[p.name] = i
-        i += p.size
-    if not all(k in index for k in ("gap", "friction_torque", "stiffness")):
+    names = problem.names([""] * problem.n_runs)  # the problem's own layout of u
+    if not all(k in names for k in ("gap", "friction_torque", "stiffness")):
         return ()
-    return index["gap"], index["friction_torque"], index["stiffness"]
+    return names.index("gap"), names.index("friction_torque"), names.index("stiffness")
 
 
 # --- the whitening: the curvature of the density sampled ----------------------------------------
