@@ -7,10 +7,10 @@ from ._emcee import (
     default_n_walkers as default_n_walkers,
     run_sampler as run_sampler,
 )
+from ._convergence import chain_diagnostics as chain_diagnostics
 from ._nuts import (
     Coordinates as Coordinates,
     NutsResult as NutsResult,
-    chain_diagnostics as chain_diagnostics,
     run_nuts as run_nuts,
 )
 from ._laplace import LaplaceResult as LaplaceResult, laplace_result as laplace_result

@@ -40,7 +40,10 @@ Choices, and why:
   itself scatters by a few % from check to check (τ ≈ 6.4: 6.5, 6.8, 6.7, 6.3, 6.4 at 500-step
   checks) and the 1 % rule then waits on noise; so the stability test is waived once the chain
   is longer than twice the required length (2 · ``tau_factor`` · both estimates): an error of
-  τ under 2× cannot make such a chain too short. Reaching ``max_steps`` first gives
+  τ under 2× cannot make such a chain too short. Then the rule every sampler is judged by
+  (``_convergence``: R̂ ≤ 1.01, bulk and tail ESS ≥ 400 for every entry of u, the kept draws
+  with walkers as chains): a chain 50 τ long can still fail it (the small paper-test campaign:
+  R̂ 1.015 at the τ rule's stop), and then it runs on. Reaching ``max_steps`` first gives
   ``converged=False`` and a :class:`ConvergenceWarning` naming the shortfall.
 - **Burn-in / thinning**: burn-in = ⌈2 · max τ⌉ steps, thinning = max(1, ⌊min τ / 2⌋) — the
   values emcee's documentation uses. Both are capped so that at least half of the chain and
@@ -67,6 +70,7 @@ import numpy as np
 
 from .._x64 import in_float64
 from .._chunks import map_chunks
+from ._convergence import chain_diagnostics, rhat_ess_shortfall
 from ._laplace_move import RETIRE_BELOW, LaplaceMove
 
 #: progress lines (INFO); the command line shows them on stderr unless --quiet
@@ -337,6 +341,17 @@ def _check(tau, tau_prev, n_steps, tau_factor, tau_rtol, min_steps, names) -> tu
     return True, ""
 
 
+def _rhat_ess_reason(sampler, tau, names) -> str:
+    """"" when the kept draws (after burn-in and thinning, walkers as chains) meet the R̂ and
+    ESS rule every sampler is judged by (``_convergence``), else the shortfall: a chain 50 τ
+    long can still hold a walker that wandered apart (R̂) or too few independent draws of a
+    parameter whose τ was underestimated (ESS)."""
+    burn, thin = _burn_thin(tau, int(sampler.iteration))
+    kept = np.asarray(sampler.get_chain(discard=burn, thin=thin))
+    rhat, bulk, tail = chain_diagnostics(kept)
+    return rhat_ess_shortfall(rhat, bulk, tail, kept.shape[0], names, per="kept draws per walker")
+
+
 def _burn_thin(tau: np.ndarray, n_steps: int) -> tuple[int, int]:
     """Burn-in ⌈2 max τ⌉ and thinning max(1, ⌊min τ / 2⌋), capped so that at least half of
     the chain and at least two draws per walker remain."""
@@ -458,6 +473,9 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
         converged, reason = _check(tau, tau_prev, sampler.iteration, tau_factor, tau_rtol,
                                    min_steps, names)
         if converged:
+            reason = _rhat_ess_reason(sampler, tau, names)
+            converged = not reason
+        if converged:
             break
         log.info("emcee: %s", steps_left(int(sampler.iteration), float(np.max(tau)), tau_factor, min_steps, max_steps))
         if stop_when is not None:
@@ -469,6 +487,9 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
     if not history:  # resumed a chain that already had max_steps steps: judge it as it is
         tau = _tau(sampler)
         converged, reason = _check(tau, None, sampler.iteration, tau_factor, tau_rtol, min_steps, names)
+        if converged:
+            reason = _rhat_ess_reason(sampler, tau, names)
+            converged = not reason
     n_steps = int(sampler.iteration)
     if not converged and not stopped:
         reason = f"not converged after {n_steps} steps (max_steps = {max_steps}): {reason}"

@@ -58,17 +58,16 @@ from dataclasses import dataclass
 import functools
 from functools import partial
 
-import arviz_stats
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import xarray as xr
 
 from .._x64 import in_float64
+from ._convergence import chain_diagnostics, rhat_ess_shortfall
 from ._emcee import ConvergenceWarning, SampleResult, _regularised_cov
 
-__all__ = ["NutsResult", "chain_diagnostics", "run_nuts"]
+__all__ = ["NutsResult", "run_nuts"]
 
 #: pseudo-count (draws) with which the first slow window keeps the Laplace covariance
 SEED_PSEUDO_COUNT = 25.0
@@ -429,36 +428,13 @@ def _init_states(problem, coords, positions):
 
 
 # --- diagnostics --------------------------------------------------------------------------------
-def chain_diagnostics(chain: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(R̂, bulk ESS, tail ESS) per entry of u from draws (draws, chains, dim), by
-    ``arviz_stats`` (rank-normalised split R̂; NaN for an entry that never moved)."""
-    da = xr.DataArray(np.transpose(np.asarray(chain, dtype=float), (1, 0, 2)), dims=("chain", "draw", "u"))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        rhat = np.asarray(arviz_stats.rhat(da).values, dtype=float)
-        bulk = np.asarray(arviz_stats.ess(da, method="bulk").values, dtype=float)
-        tail = np.asarray(arviz_stats.ess(da, method="tail").values, dtype=float)
-    return rhat, bulk, tail
-
-
 def _check(rhat, bulk, tail, n_div, n_draws, rhat_max, min_ess, names) -> tuple[bool, str]:
     """(converged, reason): the rule of the module docstring; the reason names the worst entry."""
-    def who(i):
-        return names[i] if i < len(names) else f"u[{i}]"
-
     if n_div:
         return False, (f"{n_div} divergent transitions after the warm-up (the sampler could not "
                        "follow the posterior's curvature; its draws may be biased)")
-    r = np.where(np.isfinite(rhat), rhat, np.inf)
-    if np.max(r) > rhat_max:
-        i = int(np.argmax(r))
-        return False, f"R̂ = {r[i]:.3f} > {rhat_max} for {who(i)} after {n_draws} draws per chain"
-    e = np.minimum(np.where(np.isfinite(bulk), bulk, 0.0), np.where(np.isfinite(tail), tail, 0.0))
-    if np.min(e) < min_ess:
-        i = int(np.argmin(e))
-        kind = "bulk" if bulk[i] <= tail[i] else "tail"
-        return False, f"{kind} ESS = {e[i]:.0f} < {min_ess} for {who(i)} after {n_draws} draws per chain"
-    return True, ""
+    reason = rhat_ess_shortfall(rhat, bulk, tail, n_draws, names, rhat_max, min_ess)
+    return not reason, reason
 
 
 # --- resume file -----------------------------------------------------------------------------
