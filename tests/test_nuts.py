@@ -150,18 +150,19 @@ def _te_only_problem(kinds=("transmission_error",)):
 def test_lost_motion_pair_of_a_te_only_campaign():
     """A campaign without hysteresis runs fits the gap's closing as the share closed at no
     load (no closing torque), and NUTS moves in w_a = log(β/2 + C·T_f) — what steady rotation
-    sees — and w_b = log(T_f/β): a bijection with |du/dw| = 1 that round-trips; a campaign
-    with a loop keeps τ_β, and u for both."""
+    sees — w_b = log(T_f/β) and w_c = log β − logit q (the log of the gap left open at no load,
+    for q near 1): a bijection with |du/dw| = 1 that round-trips; a campaign with a loop keeps
+    τ_β, and u for both."""
     from torsionfit.model import FrictionClosureBacklash, SmoothBacklash
 
     problem = _te_only_problem()
     assert isinstance(problem.model.backlash, FrictionClosureBacklash)
     names = [p.name for p in problem.physics]
     assert "gap_torque" not in names and "gap_closure" in names  # τ_β is never seen in steady rotation
-    i_gap, i_fric, i_k = (names.index(n) for n in ("gap", "friction_torque", "stiffness"))
+    i_gap, i_fric, i_k, i_q = (names.index(n) for n in ("gap", "friction_torque", "stiffness", "gap_closure"))
     u = jnp.asarray(np.random.default_rng(0).normal(size=problem.dim)).at[i_k].set(np.log(1.2e6))
     coords = Coordinates.of(problem)
-    assert coords.lost_motion == (i_gap, i_fric, i_k)
+    assert coords.lost_motion == (i_gap, i_fric, i_k, i_q)
     coords = coords._with_compliance(u)
     w = coords.from_u(u)
     back, logjac = coords.to_u(w)
@@ -169,9 +170,11 @@ def test_lost_motion_pair_of_a_te_only_campaign():
     beta, t_f = np.exp(u[i_gap]), np.exp(u[i_fric])
     np.testing.assert_allclose(np.exp(w[i_gap]), beta / 2 + t_f / 1.2e6, rtol=1e-12)
     np.testing.assert_allclose(w[i_fric], np.log(t_f / beta), rtol=1e-12)
+    q = 1 / (1 + np.exp(-u[i_q]))
+    np.testing.assert_allclose(w[i_q], np.log(beta * (1 - q) / q), rtol=1e-12)
     plain = dataclasses.replace(coords, noise=(0, 0), ar1=(0, 0))  # the pair alone
     jac = np.asarray(jax.jacfwd(lambda v: plain.to_u(v)[0])(w))
-    assert np.linalg.det(jac) == pytest.approx(1.0, rel=1e-9)  # volume-preserving ...
+    assert abs(np.linalg.det(jac)) == pytest.approx(1.0, rel=1e-9)  # volume-preserving ...
     assert float(plain.to_u(w)[1]) == 0.0  # ... so no Jacobian term
     assert float(logjac) == pytest.approx(float(dataclasses.replace(coords, lost_motion=()).to_u(w)[1]))
     with_loop = _te_only_problem(("hysteresis",))

@@ -43,4 +43,7 @@ def test_nuts_follows_the_lost_motion_ridge_of_a_te_export(tmp_path):
     res = run_nuts(problem, m, seed=0, n_chains=4, n_warmup=150, initial_draws=100, max_draws=100, progress=False)
     steps = np.asarray(res.step_size)
     assert res.n_divergent == 0 and steps.max() < 2 * steps.min(), steps
+    # 16.5 leapfrog steps per draw here, with the gap's closing share sampled as logit q or as
+    # log β − logit q alike: on block means of 8 the no-load runs resolve that share too coarsely
+    # for its funnel to matter; at full resolution it does (docs/benchmarks.md, the TE campaign)
     assert float(np.mean(res.n_leapfrog)) < 32, float(np.mean(res.n_leapfrog))

@@ -136,6 +136,11 @@ class Coordinates(eqx.Module):
       and chains that disagree). NUTS moves instead in w_a = log(β/2 + C·T_f) and w_b = log T_f − log β
       (C from the MAP's stiffness; a volume-preserving map, |du/dw| = 1), where the ridge is
       a straight line w_a = const.
+      The share q of the gap closed at no load is seen, in the no-load runs, as the gap left
+      open there, β(1 − q)/2 ≈ β·e^(−logit q)/2 for q near 1: its precision in logit q scales
+      with 1/β, a funnel as β → 0 (on that campaign the one divergent transition of 2000 was
+      at small β and q far below its posterior). NUTS moves in w_c = log β − logit q instead
+      (the log of that open part; a shift, |du/dw| = 1).
 
     The log-density in w adds log |du/dw| (by JAX, element-wise).
 
@@ -152,7 +157,7 @@ class Coordinates(eqx.Module):
     ar1_scale: jnp.ndarray  # c_r per AR(1) run
     shift: jnp.ndarray | None = None  # w_MAP (None: z = w)
     chol: jnp.ndarray | None = None  # L
-    #: (index of log β, of log T_f, of log K) in u for the lost-motion pair, or () without it
+    #: (index of log β, of log T_f, of log K, of logit q) in u for the lost-motion coordinates, or ()
     lost_motion: tuple = eqx.field(static=True, default=())
     log_compliance: jnp.ndarray | None = None  # log C = −log K at the MAP (rad/N·m)
 
@@ -182,7 +187,8 @@ class Coordinates(eqx.Module):
         cov_w = np.asarray(cov_u, dtype=float) / np.outer(jac, jac)
         if self.lost_motion:  # the pair's block: cov_w = J cov_u Jᵀ with J = dw/du
             j = np.eye(len(jac))
-            j[np.ix_(self.lost_motion[:2], self.lost_motion[:2])] = np.asarray(self._pair_dw_du(jnp.asarray(u_map)))
+            idx = self._pair_indices()
+            j[np.ix_(idx, idx)] = np.asarray(self._pair_dw_du(jnp.asarray(u_map)))
             cov_w = j @ cov_w @ j.T
         cov_w = _regularised_cov(cov_w)
         if problem is not None:
@@ -221,9 +227,9 @@ class Coordinates(eqx.Module):
             u = u.at[c:d].set(jax.vmap(self._ar1_u)(wr, self.ar1_scale))
             logjac = logjac + jnp.sum(jnp.log(jnp.abs(jax.vmap(jax.grad(self._ar1_u))(wr, self.ar1_scale))))
         if self.lost_motion:  # volume-preserving: no Jacobian term
-            i_gap, i_fric, _ = self.lost_motion
+            i_gap, i_fric, _, i_q = self.lost_motion
             log_gap = w[i_gap] - jnp.logaddexp(-jnp.log(2.0), w[i_fric] + self.log_compliance)
-            u = u.at[i_gap].set(log_gap).at[i_fric].set(log_gap + w[i_fric])
+            u = u.at[i_gap].set(log_gap).at[i_fric].set(log_gap + w[i_fric]).at[i_q].set(log_gap - w[i_q])
         return u, logjac
 
     def _with_compliance(self, u_map) -> "Coordinates":
@@ -232,13 +238,18 @@ class Coordinates(eqx.Module):
         log_c = -jnp.asarray(np.asarray(u_map, dtype=float)[self.lost_motion[2]])
         return eqx.tree_at(lambda c: c.log_compliance, self, log_c, is_leaf=lambda x: x is None)
 
-    def _pair_w(self, log_gap, log_fric):
-        return jnp.logaddexp(log_gap - jnp.log(2.0), log_fric + self.log_compliance), log_fric - log_gap
+    def _pair_indices(self) -> list:
+        """u indices of log β, log T_f and logit q (the entries the lost-motion map mixes)."""
+        i_gap, i_fric, _, i_q = self.lost_motion
+        return [i_gap, i_fric, i_q]
+
+    def _pair_w(self, log_gap, log_fric, logit_q):
+        return (jnp.logaddexp(log_gap - jnp.log(2.0), log_fric + self.log_compliance), log_fric - log_gap,
+                log_gap - logit_q)
 
     def _pair_dw_du(self, u):
-        """d(w_a, w_b)/d(log β, log T_f) at ``u`` (2 × 2)."""
-        i_gap, i_fric, _ = self.lost_motion
-        return jax.jacfwd(lambda v: jnp.stack(self._pair_w(v[0], v[1])))(jnp.stack([u[i_gap], u[i_fric]]))
+        """d(w_a, w_b, w_c)/d(log β, log T_f, logit q) at ``u`` (3 × 3)."""
+        return jax.jacfwd(lambda v: jnp.stack(self._pair_w(v[0], v[1], v[2])))(u[jnp.asarray(self._pair_indices())])
 
     def from_u(self, u):
         """w of u (the inverse of :meth:`to_u`)."""
@@ -252,9 +263,9 @@ class Coordinates(eqx.Module):
             atanh = 0.5 * (jnp.log1p(rho) + jax.nn.softplus(u[c:d]))  # 1 − ρ = sigmoid(−u)
             w = w.at[c:d].set(self._softplus_inv(atanh / self.ar1_scale))
         if self.lost_motion:
-            i_gap, i_fric, _ = self.lost_motion
-            wa, wb = self._pair_w(u[i_gap], u[i_fric])
-            w = w.at[i_gap].set(wa).at[i_fric].set(wb)
+            i_gap, i_fric, _, i_q = self.lost_motion
+            wa, wb, wc = self._pair_w(u[i_gap], u[i_fric], u[i_q])
+            w = w.at[i_gap].set(wa).at[i_fric].set(wb).at[i_q].set(wc)
         if self.chol is None:
             return w
         return jax.scipy.linalg.solve_triangular(self.chol, w - self.shift, lower=True)
@@ -267,7 +278,7 @@ class Coordinates(eqx.Module):
 
 
 def _lost_motion_pair(problem) -> tuple:
-    """(u index of the gap, of the friction level, of the stiffness) when ``problem``'s gap is
+    """(u index of the gap, of the friction level, of the stiffness, of the gap's closure) when ``problem``'s gap is
     :class:`~torsionfit.model.FrictionClosureBacklash` (a campaign without hysteresis runs) and
     its compliance is one stiffness; else ()."""
     from ..model import FrictionClosureBacklash
@@ -276,9 +287,10 @@ def _lost_motion_pair(problem) -> tuple:
     if model is None or not isinstance(model.backlash, FrictionClosureBacklash):
         return ()
     names = problem.names([""] * problem.n_runs)  # the problem's own layout of u
-    if not all(k in names for k in ("gap", "friction_torque", "stiffness")):
+    keys = ("gap", "friction_torque", "stiffness", "gap_closure")
+    if not all(k in names for k in keys):
         return ()
-    return names.index("gap"), names.index("friction_torque"), names.index("stiffness")
+    return tuple(names.index(k) for k in keys)
 
 
 # --- the whitening: the curvature of the density sampled ----------------------------------------
