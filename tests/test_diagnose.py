@@ -21,9 +21,10 @@ and speed dependence together). Every campaign is made by a ``*_case`` function 
 
 Cost: every campaign has the shape of ``base.toml`` (same run kinds, same run lengths), so the
 base model compiles once per process and each extension once (~20 s per new model shape on an
-idle two-core machine, ~3 s per fit once compiled); the file runs nine diagnoses in five to six
+idle two-core machine, ~3 s per fit once compiled); the file runs eight diagnoses in about five
 minutes there (most of it compiling). Cases whose catalog entry another test already finds are
-left to the zoo (``ZOO_ONLY``).
+left to the zoo (``ZOO_ONLY``), and so is the TE campaign with two effects found in turn
+(``TORSIONFIT_DIAGNOSE_ZOO_CASES=1`` runs it in the file).
 """
 
 import json
@@ -250,11 +251,9 @@ def _check_finite(d):
 
 
 #: effects the suite leaves to the diagnose zoo (scripts/diagnose_zoo.py runs every case) because
-#: another test of the suite finds the same catalog entry: the kinematic error and the speed
-#: dependence in turn (test_kinematic_error_and_speed_dependence_are_both_found, and the kinematic
-#: error on the TE export in test_te_exports_e2e.py), the drift in its warm-up shape
-#: (test_saturating_drift_closes_to_the_noise) — about two minutes of compiling saved
-ZOO_ONLY = ("kinematic_error", "speed_dependence", "thermal_drift")
+#: another test of the suite finds the same catalog entry: the kinematic error on the TE export
+#: (test_te_exports_e2e.py), the drift in its warm-up shape (test_saturating_drift_closes_to_the_noise)
+ZOO_ONLY = ("kinematic_error", "thermal_drift")
 
 
 @pytest.mark.parametrize("effect", [
@@ -287,8 +286,8 @@ def test_clean_campaign_adds_nothing(tmp_path, seed):
 def two_effects_case(folder: Path) -> Case:
     """Creep and a two-order kinematic error in base.toml: a case of the diagnose zoo
     (scripts/diagnose_zoo.py, docs/diagnose/zoo.md), out of the suite for its length — creep
-    alone is a test here, the kinematic error is found in the TE tests, and two effects found in
-    turn are tested on the TE campaign below."""
+    alone is a test here, the kinematic error is found on the TE export (test_te_exports_e2e.py),
+    and two effects found in turn are the zoo's TE case below."""
     rng = np.random.default_rng(_seed("parameters", "two"))
     e1, t1, _ = _rate_dependence(rng)
     e2, t2, _ = _kinematic_error(rng)
@@ -413,7 +412,10 @@ def kinematic_speed_case(folder: Path, draw: int, samples_per_rev: int | None = 
     return Case(campaign, _seed("diagnose", "te-speed", draw) % 1000, effects, truth)
 
 
-@pytest.mark.parametrize("draw", [0])  # one draw in the suite for its length; others: kinematic_speed_case(…, draw)
+@pytest.mark.skipif(os.environ.get("TORSIONFIT_DIAGNOSE_ZOO_CASES") != "1",
+                    reason="a diagnose-zoo case (scripts/diagnose_zoo.py; ~110 s of compiling ten TE runs): "
+                           "TORSIONFIT_DIAGNOSE_ZOO_CASES=1 runs it here")
+@pytest.mark.parametrize("draw", [0])  # others: kinematic_speed_case(…, draw)
 def test_kinematic_error_and_speed_dependence_are_both_found(tmp_path, draw):
     """Both effects in one TE campaign: the harmonics first (the larger signature), then the TE
     level that changes with speed — a difference between runs, which only a joint test of the
