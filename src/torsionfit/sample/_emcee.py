@@ -341,15 +341,19 @@ def _check(tau, tau_prev, n_steps, tau_factor, tau_rtol, min_steps, names) -> tu
     return True, ""
 
 
-def _rhat_ess_reason(sampler, tau, names) -> str:
-    """"" when the kept draws (after burn-in and thinning, walkers as chains) meet the R̂ and
-    ESS rule every sampler is judged by (``_convergence``), else the shortfall: a chain 50 τ
-    long can still hold a walker that wandered apart (R̂) or too few independent draws of a
-    parameter whose τ was underestimated (ESS)."""
+def _judge(sampler, tau, tau_prev, tau_factor, tau_rtol, min_steps, names) -> tuple[bool, str]:
+    """(converged, reason): the τ rule (:func:`_check`), then the R̂ and ESS rule every sampler
+    is judged by (``_convergence``) on the kept draws (after burn-in and thinning, walkers as
+    chains) — a chain 50 τ long can still hold a walker that wandered apart (R̂) or too few
+    independent draws of a parameter whose τ was underestimated (ESS)."""
+    converged, reason = _check(tau, tau_prev, sampler.iteration, tau_factor, tau_rtol, min_steps, names)
+    if not converged:
+        return False, reason
     burn, thin = _burn_thin(tau, int(sampler.iteration))
     kept = np.asarray(sampler.get_chain(discard=burn, thin=thin))
     rhat, bulk, tail = chain_diagnostics(kept)
-    return rhat_ess_shortfall(rhat, bulk, tail, kept.shape[0], names, per="kept draws per walker")
+    reason = rhat_ess_shortfall(rhat, bulk, tail, kept.shape[0], names, per="kept draws per walker")
+    return not reason, reason
 
 
 def _burn_thin(tau: np.ndarray, n_steps: int) -> tuple[int, int]:
@@ -470,11 +474,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
         _retire_if_rejected(laplace, sampler.iteration, check_every)
         tau = _tau(sampler)
         history.append((int(sampler.iteration), float(np.max(tau))))
-        converged, reason = _check(tau, tau_prev, sampler.iteration, tau_factor, tau_rtol,
-                                   min_steps, names)
-        if converged:
-            reason = _rhat_ess_reason(sampler, tau, names)
-            converged = not reason
+        converged, reason = _judge(sampler, tau, tau_prev, tau_factor, tau_rtol, min_steps, names)
         if converged:
             break
         log.info("emcee: %s", steps_left(int(sampler.iteration), float(np.max(tau)), tau_factor, min_steps, max_steps))
@@ -486,10 +486,7 @@ def run_sampler(problem, map_result, *, seed: int, n_walkers: int | None = None,
         tau_prev = tau
     if not history:  # resumed a chain that already had max_steps steps: judge it as it is
         tau = _tau(sampler)
-        converged, reason = _check(tau, None, sampler.iteration, tau_factor, tau_rtol, min_steps, names)
-        if converged:
-            reason = _rhat_ess_reason(sampler, tau, names)
-            converged = not reason
+        converged, reason = _judge(sampler, tau, None, tau_factor, tau_rtol, min_steps, names)
     n_steps = int(sampler.iteration)
     if not converged and not stopped:
         reason = f"not converged after {n_steps} steps (max_steps = {max_steps}): {reason}"
