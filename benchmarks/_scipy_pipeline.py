@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -119,6 +119,15 @@ def _affine_floats(a, b, x0):
     return np.array(res)
 
 
+def _angle(mesh, k, gap, t_g, with_slope: bool):
+    """Elastic + gap angle of the mesh torque; with ``with_slope`` also d angle / d mesh torque."""
+    x = mesh / t_g
+    angle = mesh / k + 0.5 * gap * np.tanh(x)
+    if not with_slope:
+        return angle
+    return angle, 1.0 / k + 0.5 * gap / t_g / np.cosh(x) ** 2
+
+
 @dataclass(eq=False)
 class NumpyProblem:
     """One hysteresis run, base model with a free initial friction state. The layout of u is
@@ -136,17 +145,6 @@ class NumpyProblem:
     prior_sd: np.ndarray
     noise_prior_mean: float
     run_name: str = "run0"
-    # derived, filled in __post_init__
-    slope_factor: np.ndarray = field(init=False, repr=False)
-
-    def __post_init__(self):
-        tau = self.tau
-        d_t = np.concatenate([tau[1:2] - tau[:1], tau[2:] - tau[:-2], tau[-1:] - tau[-2:-1]])
-        eps = 1e-6 * (np.max(np.abs(tau)) + 1e-12)
-        self._d_t = d_t
-        self._d_t_den = d_t**2 + eps**2
-        self.slope_factor = d_t / self._d_t_den
-
     # --- sizes and names -------------------------------------------------------------------
     n_model = len(PHYSICS) + 1  # + friction_start
 
@@ -177,8 +175,11 @@ class NumpyProblem:
         return out
 
     # --- model -----------------------------------------------------------------------------
-    def predict(self, u, recurrence: str = "loop"):
-        """Predicted angle without the offset, (W, dim) → (N, W) (samples × walkers).
+    def predict(self, u, recurrence: str = "loop", with_slope: bool = False):
+        """Predicted angle without the offset, (W, dim) → (N, W) (samples × walkers); with
+        ``with_slope``, also its derivative with respect to a shift of the drive torque
+        (``FitProblem.prediction_and_torque_slope``: the friction state unchanged, so for this
+        model 1/K + (β/2τ_β)·sech²(τ_m/τ_β)).
 
         ``recurrence="loop"`` (what the benchmark compares): the Dahl recurrence as a tight
         loop over samples. ``"runs"``: its closed form per monotone run (:func:`_dahl_by_runs`),
@@ -196,9 +197,9 @@ class NumpyProblem:
             b = np.sign(d_tau) * (1.0 - a)
             z = _affine_rows(a, b, z0, np.empty_like(tau))
         mesh = tau - t_f * z
-        return mesh / k + 0.5 * gap * np.tanh(mesh / t_g)
+        return _angle(mesh, k, gap, t_g, with_slope)
 
-    def predict_one(self, u):
+    def predict_one(self, u, with_slope: bool = False):
         """The same for one parameter set (Python-float recurrence): (dim,) → (N,)."""
         u = np.asarray(u, float)
         with np.errstate(over="ignore"):
@@ -210,7 +211,7 @@ class NumpyProblem:
         b = np.sign(d_tau) * (1.0 - a)
         z = _affine_floats(a, b, z0)
         mesh = tau - t_f * z
-        return mesh / k + 0.5 * gap * np.tanh(mesh / t_g)
+        return _angle(mesh, k, gap, t_g, with_slope)
 
     # --- likelihood pieces -----------------------------------------------------------------
     def noise_values(self, u):
@@ -222,11 +223,9 @@ class NumpyProblem:
         rho = 1.0 / (1.0 + np.exp(-u[..., n + 1])) if self.ar1 else np.zeros_like(s)
         return sigma, rho
 
-    def _scales(self, f, sigma):
-        """Per-sample innovation sd √(σ² + slope²·var τ̂); f (N, W) or (N,)."""
-        d_f = np.concatenate([f[1:2] - f[:1], f[2:] - f[:-2], f[-1:] - f[-2:-1]], axis=0)
-        extra = (slice(None),) + (None,) * (f.ndim - 1)
-        slope = d_f * self._d_t[extra] / self._d_t_den[extra]
+    def _scales(self, slope, sigma):
+        """Per-sample innovation sd √(σ² + slope²·var τ̂); slope (N, W) or (N,)."""
+        extra = (slice(None),) + (None,) * (slope.ndim - 1)
         return np.sqrt(sigma**2 + slope**2 * self.torque_var[extra])
 
     @staticmethod
@@ -239,16 +238,17 @@ class NumpyProblem:
         out /= scale
         return out
 
-    def profile(self, u, f=None, recurrence: str = "loop"):
+    def profile(self, u, pred=None, recurrence: str = "loop"):
         """Whitened residuals with the angle offset at its weighted-LS optimum, for u (dim,)
         or a batch (W, dim): (white (N[, W]), offset, log A, scales, ρ). A = Σ wx², the
         normal-equation "matrix" of the one linear parameter (torsionfit's 1e-10 trace
-        regularisation included)."""
+        regularisation included). ``pred``: (prediction, torque slope) of u, when known."""
         batch = np.ndim(u) == 2
-        if f is None:
-            f = self.predict(u, recurrence) if batch else self.predict_one(u)
+        if pred is None:
+            pred = self.predict(u, recurrence, with_slope=True) if batch else self.predict_one(u, with_slope=True)
+        f, slope = pred
         sigma, rho = self.noise_values(u)
-        scales = self._scales(f, sigma)
+        scales = self._scales(slope, sigma)
         y = self.y[:, None] if batch else self.y
         we = self._whiten(y - f, scales, rho)
         # whitened design column of the offset (a column of ones)
@@ -293,19 +293,19 @@ class NumpyProblem:
 
     def residuals(self, u):
         """Raw residuals y − prediction (rad) with the offset at its optimum; u (dim,)."""
-        f = self.predict_one(u)
-        _, beta, _, _, _ = self.profile(u, f)
-        return self.y - (f + beta)
+        pred = self.predict_one(u, with_slope=True)
+        _, beta, _, _, _ = self.profile(u, pred)
+        return self.y - (pred[0] + beta)
 
-    def lm_residuals(self, u_nl, u_noise, f=None):
+    def lm_residuals(self, u_nl, u_noise, pred=None):
         """fit_map's least-squares vector: whitened residuals, then the prior of the
         non-linear block as pseudo-residuals; u_nl (n_nonlinear,) or a batch (W, ·) → (M[, W])."""
         u_nl = np.asarray(u_nl, float)
         if u_nl.ndim == 2:
             u = np.concatenate([u_nl, np.broadcast_to(u_noise, (len(u_nl), len(u_noise)))], axis=1)
-            white = self.profile(u, f)[0]
+            white = self.profile(u, pred)[0]
             return np.concatenate([white, ((u_nl - self.prior_mean) / self.prior_sd).T], axis=0)
-        white = self.profile(np.concatenate([u_nl, u_noise]), f)[0]
+        white = self.profile(np.concatenate([u_nl, u_noise]), pred)[0]
         return np.concatenate([white, (u_nl - self.prior_mean) / self.prior_sd])
 
 

@@ -283,6 +283,28 @@ class FitProblem(eqx.Module):
         zero = self.linear_values(jnp.zeros(self.n_linear))
         return self.model.predict({**self.physics_values(u_nl), **zero}, self.corrected_inputs(u_nl))
 
+    def prediction_and_torque_slope(self, u_nl):
+        """(:meth:`nonlinear_prediction`, dθ̂/dτ̂ per run): the angle's derivative (rad/N·m) with
+        respect to a shift of the run's whole drive torque — the elastic, gap and creep response
+        at each sample, the friction state unchanged (a shift changes no torque increment),
+        which is how a smooth, ramp-long error of the denoised torque moves the angle. Exact
+        (one forward-mode pass), so it is smooth in the parameters: a finite difference of the
+        prediction over neighbouring samples, divided by their torque step, blew up where that
+        step nears zero (reversals) and made the log-density rough in the friction parameters
+        (NUTS then diverged at any step size on data/paper-small)."""
+        zero = self.linear_values(jnp.zeros(self.n_linear))
+        values = {**self.physics_values(u_nl), **zero}
+        inputs = self.corrected_inputs(u_nl)
+
+        def shifted(c):
+            moved = [m.HysteresisInput(i.time_s, i.torque_Nm + c, i.temperature_delta_K)
+                     if isinstance(i, m.HysteresisInput) else i for i in inputs]
+            return self.model.predict(values, moved)
+
+        preds, slopes = jax.jvp(shifted, (jnp.zeros((), dtype=jnp.result_type(float)),),
+                                (jnp.ones((), dtype=jnp.result_type(float)),))
+        return list(preds), list(slopes)
+
     @staticmethod
     def whiten(x, scale, rho):
         """AR(1) innovations of x divided by the per-sample scale (Prais–Winsten first
@@ -292,22 +314,18 @@ class FitProblem(eqx.Module):
         innov = jnp.concatenate([first, rest], axis=0)
         return innov / (scale[:, None] if jnp.ndim(scale) and innov.ndim == 2 else scale)
 
-    def sample_scales(self, u, preds):
-        """Innovation sd per sample: √(σ_r² + (dθ̂/dτ̂)²·var τ̂). The second term carries the
-        error of the denoised drive torque into the angle (errors in variables): it matters
-        where the loop is steep, e.g. while lost motion closes around zero torque."""
+    def sample_scales(self, u, slopes):
+        """Innovation sd per sample: √(σ_r² + (dθ̂/dτ̂)²·var τ̂), ``slopes`` from
+        :meth:`prediction_and_torque_slope`. The second term carries the error of the denoised
+        drive torque into the angle (errors in variables): it matters where the loop is steep,
+        e.g. while lost motion closes around zero torque."""
         sigma = self.sample_sigma(u)
         scales = []
-        for r, (f, inp, var) in enumerate(zip(preds, self.inputs, self.torque_var)):
-            if isinstance(inp, m.HysteresisInput) and f.shape[0] > 2:
-                tau = inp.torque_Nm
-                d_f = jnp.concatenate([f[1:2] - f[:1], f[2:] - f[:-2], f[-1:] - f[-2:-1]])
-                d_t = jnp.concatenate([tau[1:2] - tau[:1], tau[2:] - tau[:-2], tau[-1:] - tau[-2:-1]])
-                eps = 1e-6 * (jnp.max(jnp.abs(tau)) + 1e-12)
-                slope = d_f * d_t / (d_t**2 + eps**2)
+        for r, (slope, inp, var) in enumerate(zip(slopes, self.inputs, self.torque_var)):
+            if isinstance(inp, m.HysteresisInput):
                 scales.append(jnp.sqrt(sigma[r] ** 2 + slope**2 * var))
             else:
-                scales.append(sigma[r] * jnp.ones_like(f))
+                scales.append(sigma[r] * jnp.ones_like(slope))
         return scales
 
     def sample_sigma(self, u) -> list:
@@ -320,8 +338,8 @@ class FitProblem(eqx.Module):
     def profile(self, u, return_scales: bool = False):
         """Solve the linear parameters for u: (whitened residuals per run, β, log det A)."""
         _, rho = self.noise_values(u)
-        preds = self.nonlinear_prediction(u[:self.n_nonlinear])
-        scales = self.sample_scales(u, preds)
+        preds, slopes = self.prediction_and_torque_slope(u[:self.n_nonlinear])
+        scales = self.sample_scales(u, slopes)
         we = [self.whiten(y - f, scales[r], rho[r]) for r, (y, f) in enumerate(zip(self.y, preds))]
         if not self.n_linear:
             out = (we, jnp.zeros(0), jnp.asarray(0.0))
