@@ -19,8 +19,9 @@ import torsionfit  # noqa: F401  (enables float64 in JAX)
 from torsionfit.report import FitOptions
 from torsionfit.report._pipeline import auto_switch_rule, sample_posterior
 from torsionfit.sample import ConvergenceWarning, Coordinates, NutsResult, run_nuts, run_sampler
+from torsionfit.sample._nuts import _mode_and_curvature
 
-from test_sample import _toy  # the Gaussian toy with a known posterior
+from test_sample import GaussianProblem, _toy  # the Gaussian toy with a known posterior
 
 BENCHES = Path(__file__).parent / "benches"
 FAST = dict(n_warmup=300, initial_draws=300, max_draws=600, progress=False)
@@ -197,6 +198,42 @@ def test_whitening_follows_the_curvature_of_the_density_sampled():
         np.testing.assert_allclose(chol @ chol.T, cov, rtol=1e-5, atol=1e-8)
         kept = np.asarray(Coordinates.of(problem).whitened(mean, wrong).chol)
         np.testing.assert_allclose(kept @ kept.T, wrong, rtol=1e-6)
+
+
+class _SkewedProblem(eqx.Module):
+    """A Gaussian toy with one coordinate a log-gamma (a noise level's shape: a wall on one
+    side, a long tail on the other); its mode is known in closed form."""
+
+    gaussian: GaussianProblem
+    shape: float = 30.0
+
+    @property
+    def dim(self) -> int:
+        return self.gaussian.dim + 1
+
+    def log_density(self, u):
+        x = u[-1]
+        return self.gaussian.log_density(u[:-1]) + self.shape * x - jnp.exp(x)
+
+
+def test_whitening_is_centred_at_the_mode_of_the_density_sampled():
+    """Started from a point several sd off the mode — what the MAP is for a density whose AR(1)
+    coefficients it caps or whose likelihood is tempered — the sampler's coordinates are
+    centred at the mode (Gaussian part: exactly; log-gamma part: log(shape)) and whitened by
+    the curvature there; the gain in log density is reported."""
+    problem, _, mean, cov = _toy()
+    skewed = _SkewedProblem(problem)
+    mode = np.append(mean, np.log(skewed.shape))
+    start = mode + np.array([3.0, -2.0, 4.0, -1.5])  # the last is 8 sd off (sd ≈ 1/√30)
+    full = np.zeros((4, 4))
+    full[:3, :3], full[3, 3] = cov, 1.0 / skewed.shape
+    coords = Coordinates.of(skewed).whitened(start, full, skewed)
+    np.testing.assert_allclose(np.asarray(coords.shift), mode, atol=1e-2)
+    chol = np.asarray(coords.chol)
+    np.testing.assert_allclose(chol @ chol.T, full, rtol=0.05, atol=1e-3)
+    w, _, gain = _mode_and_curvature(skewed, Coordinates.of(skewed), start, full)
+    lp = lambda u: float(skewed.log_density(jnp.asarray(u)))  # noqa: E731
+    assert gain == pytest.approx(lp(w) - lp(start), rel=1e-9) and gain > 10
 
 
 def test_auto_rule_names_the_budget():
