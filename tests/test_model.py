@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import torsionfit.model as m
+from torsionfit import InputError
 
 RATED = 100.0  # N·m
 
@@ -187,6 +188,34 @@ def test_loop_width_at_zero_torque_is_two_tf_over_k():
     down = np.interp(0.0, tau[2 * n:n:-1], theta[2 * n:n:-1])  # step 2 ends at τ = 0
     up = np.interp(0.0, tau[3 * n:4 * n + 1], theta[3 * n:4 * n + 1])  # step 4 ends at τ = 0
     assert down - up == pytest.approx(2 * 4.0 / 2.0e5, rel=1e-6)
+
+
+def test_preloaded_gap_is_the_smooth_gap_without_preload_and_closed_within_it():
+    """A preloaded gap (split-pinwheel designs): with T_p → 0 it is the smooth gap; a cycle
+    whose mesh torque stays within ±T_p sees no gap at all, a cycle beyond it crosses all of β,
+    half at each of ±T_p."""
+    params = dict(gap=2e-3, gap_torque=0.3, gap_preload_torque=1e-9)
+    tau = jnp.linspace(-20.0, 20.0, 401)
+    np.testing.assert_allclose(m.PreloadedBacklash()(params, tau), m.SmoothBacklash()(params, tau), rtol=0, atol=1e-15)
+    params["gap_preload_torque"] = 6.0
+    theta = np.asarray(m.PreloadedBacklash()(params, tau))
+    small = np.abs(tau) <= 4.0  # a ±4 N·m play ramp inside the preload
+    assert np.ptp(theta[small]) < 1e-5 * params["gap"]
+    assert theta[-1] - theta[0] == pytest.approx(params["gap"], rel=1e-9)
+    half = np.asarray(m.PreloadedBacklash()(params, jnp.array([-6.0, 6.0])))
+    np.testing.assert_allclose(half, [-0.25 * params["gap"], 0.25 * params["gap"]], rtol=1e-9)
+
+
+def test_gap_preload_switch():
+    """``gap_preload`` gives the preloaded gap to loops, and stops with one line on a campaign
+    without a loop or with a value that is not a switch."""
+    model = m.model_with_effects(("hysteresis",), {"gap_preload": True}, 20.0, fitted=True)
+    assert isinstance(model.backlash, m.PreloadedBacklash)
+    assert "gap_preload_torque" in [p.name for p in model.parameters()]
+    with pytest.raises(InputError, match=r"gap_preload: needs a hysteresis run"):
+        m.model_with_effects(("transmission_error",), {"gap_preload": True}, 20.0, fitted=True)
+    with pytest.raises(InputError, match=r"gap_preload: expected true or false"):
+        m.model_with_effects(("hysteresis",), {"gap_preload": "yes"}, 20.0)
 
 
 def angle_at_rated(rate, creep_on=True):

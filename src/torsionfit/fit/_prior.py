@@ -86,6 +86,7 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "gap": (log(0.1 * twist0), 2.5),
         "gap_torque": (log(0.02 * rated), 2.0),
         "gap_closure": (log(0.9 / 0.1), 1.5),  # logit-normal around q = 0.9: mostly closed by friction
+        "gap_preload_torque": (log(0.1 * rated), 1.5),
         "creep_stiffness": (log(5 * k0), 2.0),
         "creep_time": (log(0.1 * max(durations)), 2.0),
         "viscous_friction": (log(0.01 * rated / v_max), 2.5),
@@ -101,7 +102,8 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
     loop = first_look_loop(campaign) if any(p.name in ("gap", "friction_torque") for p in parameters) else None
     if loop is not None:
         play, friction = loop
-        table["gap"] = (log(play), 1.0)
+        # a preloaded gap is not seen by the small cycles: their play does not bound it
+        table["gap"] = (log(play), 2.5 if any(p.name == "gap_preload_torque" for p in parameters) else 1.0)
         table["friction_torque"] = (log(friction), 1.0)
     out = {}
     for p in parameters:

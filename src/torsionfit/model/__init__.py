@@ -5,6 +5,7 @@ from ._backlash import (
     AbstractBacklash as AbstractBacklash,
     FrictionClosureBacklash as FrictionClosureBacklash,
     NoBacklash as NoBacklash,
+    PreloadedBacklash as PreloadedBacklash,
     SmoothBacklash as SmoothBacklash,
 )
 from ._campaign_model import COMPONENTS as COMPONENTS, CampaignModel as CampaignModel

@@ -52,6 +52,29 @@ class FrictionClosureBacklash(AbstractBacklash):
         return 0.5 * params["gap"] * jnp.tanh(mesh_torque_Nm * rate)
 
 
+class PreloadedBacklash(AbstractBacklash):
+    """A gap held closed by a preload, as in split-pinwheel (anti-backlash) designs: the two
+    halves press on opposite flanks, so the mesh carries torque without lost motion until
+    |τ_m| exceeds the preload T_p; beyond it one half lifts off and its half of the gap opens:
+
+        ``θ_g = (β/4)·[tanh((τ_m − T_p)/τ_β) + tanh((τ_m + T_p)/τ_β)]``
+
+    Each loading direction crosses β/2 near τ_m = ±T_p, so the two half-crossings of one branch
+    sit 2·T_p apart in torque, and cycles within ±T_p of mesh torque (small play ramps) see no
+    gap at all. T_p → 0 is :class:`SmoothBacklash`."""
+
+    def parameters(self):
+        return (
+            Parameter("gap", "positive", "rad", "geometric gap β (lost motion of the mesh)"),
+            Parameter("gap_torque", "positive", "N·m", "mesh torque τ_β over which each half of the gap closes"),
+            Parameter("gap_preload_torque", "positive", "N·m", "preload T_p: mesh torque the gap stays closed below"),
+        )
+
+    def __call__(self, params, mesh_torque_Nm):
+        w, tp = params["gap_torque"], params["gap_preload_torque"]
+        return 0.25 * params["gap"] * (jnp.tanh((mesh_torque_Nm - tp) / w) + jnp.tanh((mesh_torque_Nm + tp) / w))
+
+
 class NoBacklash(AbstractBacklash):
     """A gap-free mesh (θ_g = 0); for tests and gap-free designs."""
 

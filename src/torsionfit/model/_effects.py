@@ -1,7 +1,7 @@
 """Switching model extensions on by name (the effects catalog's names, DESIGN §3)."""
 
 from .._errors import InputError
-from ._backlash import FrictionClosureBacklash, SmoothBacklash
+from ._backlash import FrictionClosureBacklash, PreloadedBacklash, SmoothBacklash
 from ._campaign_model import CampaignModel
 from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, ThreeSegmentCompliance
 from ._creep import Creep
@@ -17,7 +17,7 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     """The base model plus the extensions named in ``effects`` (the catalog names of
     DESIGN §3: ``stiffness_nonlinearity``, ``rate_dependence``, ``kinematic_error``,
     ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``,
-    ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``), as a bench file's ``[effects]``
+    ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``, ``gap_preload``), as a bench file's ``[effects]``
     table or a user's switches give them. ``fitted``: the model a fit estimates, whose gap
     is :class:`FrictionClosureBacklash` when no run is a hysteresis run (the same curve, with the
     share of the gap closed at no load in place of a closing torque the data cannot see); a
@@ -51,7 +51,12 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         opts = sp if isinstance(sp, dict) else {}
         speed = SpeedDependence(viscous=bool(opts.get("viscous", True)), compliance_order=int(opts.get("compliance_order", 0)))
     closed = fitted and "hysteresis" not in tuple(run_kinds)
-    backlash = FrictionClosureBacklash() if closed else SmoothBacklash()
+    preload = effects.get("gap_preload", False)
+    if not isinstance(preload, bool):
+        raise InputError(f"[effects].gap_preload: expected true or false, got {preload!r}")
+    if preload and closed:
+        raise InputError("[effects].gap_preload: needs a hysteresis run (a TE run sees the gap closed or at its no-load share, never the preload)")
+    backlash = FrictionClosureBacklash() if closed else PreloadedBacklash() if preload else SmoothBacklash()
     return CampaignModel(
         backlash=backlash,
         temperature=_temperature(effects.get("temperature_dependence", False)),
