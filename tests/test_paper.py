@@ -121,18 +121,68 @@ def test_paper_command_bad_data_folder_is_one_line(tmp_path):
     assert code == 2
 
 
+def _as_te_export(source: Path, target: Path) -> None:
+    """Re-write the bundled campaign in ``source`` as a TE bench exports it (SYNTHETIC, as the
+    bundled data): the loops as they are; each TE run in a file of its own named by its motor
+    speed, angle and TE in degrees, TE lag-negative, ``;``-separated, no time and no torque
+    column (the manifest gives the load, the time follows from the speed), a trailing NaN pad
+    row; the manifest declares ``te_convention`` and gives the motor speed with the ratio. The
+    bench does not re-zero between tests, so no ``zero_group``."""
+    import tomllib
+
+    from torsionfit.io import TransmissionErrorRun, load_campaign
+
+    target.mkdir(parents=True)
+    campaign = load_campaign(source / "campaign.toml")
+    doc = tomllib.loads((source / "campaign.toml").read_text())
+    ratio = campaign.reducer.ratio
+    lines = [f'label = "{doc["label"]} (re-written as a TE bench export)"', "", "[reducer]"]
+    lines += [f"{k} = {v!r}" for k, v in doc["reducer"].items() if not isinstance(v, str)] + [f'name = "{doc["reducer"]["name"]}"']
+    lines += ["", "[instrument]"] + [f"{k} = {v!r}" for k, v in doc["instrument"].items() if k != "sample_rate_Hz"]
+    lines += ['te_convention = "lag_negative"']
+    for entry, run in zip(doc["runs"], campaign.runs):
+        lines += ["", "[[runs]]"]
+        if not isinstance(run, TransmissionErrorRun):
+            (target / entry["file"]).write_bytes((source / entry["file"]).read_bytes())
+            lines += [f"{k} = {v!r}".replace("'", '"') for k, v in entry.items()]
+            continue
+        file = f"TE_{run.speed_rpm * ratio:g}rpm_{run.torque_Nm:g}Nm.csv"
+        rows = ["# " + doc["label"], "Pos_fw;TE_fw"]
+        rows += [f"{a!r};{-t!r}" for a, t in zip(np.rad2deg(run.output_angle_rad).tolist(), np.rad2deg(run.te_rad).tolist())]
+        (target / file).write_text("\n".join(rows + ["NaN;NaN"]) + "\n")
+        lines += [f'name = "{run.name}"', 'kind = "transmission_error"', f'file = "{file}"',
+                  f"input_speed_rpm = {run.speed_rpm * ratio!r}", f"torque_Nm = {run.torque_Nm!r}",
+                  'direction = "forward"', 'columns = { output_angle = "Pos_fw", te = "TE_fw" }',
+                  'units = { output_angle = "deg", te = "deg" }']
+    (target / "campaign.toml").write_text("\n".join(lines) + "\n")
+    (target / "bench.toml").write_bytes((source / "bench.toml").read_bytes())
+
+
 @pytest.mark.slow
-def test_paper_command_end_to_end_quick(tmp_path):
-    """``torsionfit paper --quick``: tables.json rows within 1 % of the published values with
-    model HDIs, every figure as PNG and PDF, the comparison page."""
+def test_paper_command_end_to_end_quick_on_te_bench_exports(tmp_path):
+    """``torsionfit paper --quick --data`` on the bundled campaigns with their TE runs written
+    the way a TE bench exports them (degrees, lag-negative, no time column, motor speed, a NaN
+    pad): the data-only TE rows equal those of the bundled layout, tables.json rows within 1 %
+    of the published values with model HDIs, every figure as PNG and PDF, the comparison page."""
+    from torsionfit.metrics import campaign_metrics
+    from torsionfit.io import load_campaign
+    from torsionfit.paper._tables import DATA_METRIC
+
+    data = tmp_path / "data"
+    for name in ("paper-small", "paper-large"):
+        _as_te_export(DATA / name, data / name)
     out = tmp_path / "paper"
     # single-threaded XLA: on a shared 2-core machine the threaded runtime was several times slower
     env = {**os.environ, "XLA_FLAGS": "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1",
            "MPLBACKEND": "Agg"}
-    proc = subprocess.run([sys.executable, "-m", "torsionfit.cli", "paper", "-o", str(out), "--quick", "--quiet"],
-                          env=env, capture_output=True, text=True, timeout=900)
+    proc = subprocess.run([sys.executable, "-m", "torsionfit.cli", "paper", "-o", str(out), "--quick", "--quiet",
+                           "--data", str(data)], env=env, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
     doc = json.loads((out / "tables.json").read_text())
+    bundled = {n: {r["name"]: r["metrics"] for r in campaign_metrics(load_campaign(DATA / n / "campaign.toml"))["runs"]}
+               for n in ("paper-small", "paper-large")}
+    for row, p in zip(doc["table6"], [p for p in PUBLISHED if p.table == "table6"], strict=True):
+        assert row["reproduced"] == pytest.approx(bundled[p.campaign][p.run][DATA_METRIC["table6"]]["value"], rel=1e-9)
     rows = doc["table4"] + doc["table6"]
     assert len(rows) == len(PUBLISHED) == 12
     for row, p in zip(rows, PUBLISHED):
