@@ -236,6 +236,38 @@ def test_whitening_is_centred_at_the_mode_of_the_density_sampled():
     assert gain == pytest.approx(lp(w) - lp(start), rel=1e-9) and gain > 10
 
 
+class _TwoHistories(eqx.Module):
+    """Two modes in u[0] at ±1.8 (weights 0.8 and 0.2, a valley at 0 no trajectory crosses)
+    and a Gaussian u[1]: the friction state before a measured loop's first sample, whose two
+    signs are two histories of the unit."""
+
+    @property
+    def dim(self) -> int:
+        return 2
+
+    def log_density(self, u):
+        a = jnp.log(0.8) - 0.5 * ((u[0] + 1.8) / 0.25) ** 2
+        b = jnp.log(0.2) - 0.5 * ((u[0] - 1.8) / 0.25) ** 2
+        return jnp.logaddexp(a, b) - 0.5 * u[1] ** 2
+
+
+def test_history_flips_let_a_chain_visit_both_signs_of_the_friction_state():
+    """With the reflection move on the friction state's entry a chain started in one mode spends
+    the modes' weights in each (0.8 / 0.2); without it, it never leaves its start."""
+    from torsionfit.sample._nuts import _log_density_fn, _sample_block_one, _bj
+
+    problem = _TwoHistories()
+    base = Coordinates.of(problem)
+    start = jnp.array([-1.8, 0.0])
+    shares = []
+    for coords in (base, dataclasses.replace(base, history=(0,))):
+        state = _bj().nuts.init(start, _log_density_fn(problem, coords))
+        _, out = _sample_block_one(problem, coords, jax.random.PRNGKey(0), state, jnp.asarray(0.2), jnp.ones(2), 4000)
+        shares.append(float(np.mean(np.asarray(out[0])[:, 0] > 0)))
+    assert shares[0] == 0.0
+    assert shares[1] == pytest.approx(0.2, abs=0.04)
+
+
 def test_auto_rule_names_the_budget():
     rule = auto_switch_rule(20_000)
     assert rule(500, np.array([3.0, 10.0])) is None

@@ -12,12 +12,15 @@ Choices, and why:
   ``lax.scan``). Where the log-density is not finite its gradient is set to 0 (a custom VJP:
   one value-and-gradient pass, as BlackJAX's own), so a trajectory that leaves the support
   ends as a divergence, never with NaN coordinates.
-- **Chains**: ``n_chains`` (4) independent chains, vmapped (one compiled program evaluates
-  all of them), started from draws of the MAP's Laplace approximation taken in the sampler's
-  own coordinates (z ~ N(0, I), below), each draw re-drawn until finite. Independent chains
-  from dispersed starts are what R̂ needs (emcee's walkers are not independent).
-- **Adaptation**: NUTS moves in coordinates whitened by the curvature of the density it
-  samples at the MAP (and, for the noise parameters, reshaped: :class:`Coordinates`), so the
+- **Chains**: ``n_chains`` (4) independent chains, each its own compiled program, run on a
+  pool of threads (one per core): a vmapped program cost more per chain than the chains one
+  after the other (:func:`_per_chain`). Started from draws of the Laplace approximation taken
+  in the sampler's own coordinates (z ~ N(0, I), below), each draw re-drawn until finite.
+  Independent chains from dispersed starts are what R̂ needs (emcee's walkers are not
+  independent).
+- **Adaptation**: NUTS moves in coordinates centred at the mode of the density it samples and
+  whitened by its curvature there (found from the MAP: :func:`_mode_and_curvature`; for the
+  noise parameters, reshaped: :class:`Coordinates`), so the
   posterior is about N(0, I) there and the starting mass matrix is I. The curvature is taken
   by central differences of the exact gradient along the axes of the MAP's Laplace
   covariance, not that covariance itself: for a likelihood tempered for misfit
@@ -160,6 +163,9 @@ class Coordinates(eqx.Module):
     #: (index of log β, of log T_f, of log K, of logit q) in u for the lost-motion coordinates, or ()
     lost_motion: tuple = eqx.field(static=True, default=())
     log_compliance: jnp.ndarray | None = None  # log C = −log K at the MAP (rad/N·m)
+    #: u indices of the friction state before each hysteresis run's first sample (atanh z0),
+    #: which :func:`_history_flips` reflects
+    history: tuple = eqx.field(static=True, default=())
 
     @staticmethod
     def of(problem) -> "Coordinates":
@@ -171,9 +177,12 @@ class Coordinates(eqx.Module):
         counts = np.array([len(y) for y in problem.y], dtype=float) * min(max(power, 1e-12), 1.0)
         floors = np.maximum(np.asarray(problem.floors, dtype=float), 1e-300)
         ar1_counts = counts[np.flatnonzero(np.asarray(problem.ar1, dtype=bool))]
+        names = problem.names([""] * r) if hasattr(problem, "names") else []  # the problem's own layout of u
+        history = tuple(i for i, name in enumerate(names) if name.split("[")[0] == "friction_start")
         return Coordinates((n, n + r), (n + r, n + r + int(problem.n_ar1)),
                            jnp.asarray(np.log(floors) + 0.25 * np.log(2.0 / counts)),
-                           jnp.asarray(1.0 / np.sqrt(ar1_counts)), lost_motion=_lost_motion_pair(problem))
+                           jnp.asarray(1.0 / np.sqrt(ar1_counts)), lost_motion=_lost_motion_pair(problem),
+                           history=history)
 
     def whitened(self, u_map, cov_u, problem=None) -> "Coordinates":
         """These coordinates, whitened by N(u_map, cov_u) (cov regularised, mapped to w); with
@@ -425,41 +434,95 @@ def _info():
 
 
 @eqx.filter_jit
-def _warmup(problem, coords, keys, positions, imm0, step0, num_steps: int, target_accept: float):
-    """Window adaptation per chain (vmapped): (last states, step sizes, inverse mass matrices,
-    leapfrog steps per chain over the warm-up)."""
-    logdensity = _log_density_fn(problem, coords)
+def _warmup_one(problem, coords, key, position, imm0, step0, num_steps: int, target_accept: float):
+    """Window adaptation of one chain: (last state, step size, inverse mass matrix, leapfrog
+    steps over the warm-up)."""
+    adapt = _bj().window_adaptation(
+        _bj().nuts, _log_density_fn(problem, coords), is_mass_matrix_diagonal=False, initial_inverse_mass_matrix=imm0,
+        imm_shrinkage_to_previous=SEED_PSEUDO_COUNT, initial_step_size=step0,
+        target_acceptance_rate=target_accept, adaptation_info_fn=_info())
+    (state, params), info = adapt.run(key, position, num_steps)
+    return state, params["step_size"], params["inverse_mass_matrix"], jnp.sum(info.info.num_integration_steps)
 
-    def one(key, position, imm):
-        adapt = _bj().window_adaptation(
-            _bj().nuts, logdensity, is_mass_matrix_diagonal=False, initial_inverse_mass_matrix=imm,
-            imm_shrinkage_to_previous=SEED_PSEUDO_COUNT, initial_step_size=step0,
-            target_acceptance_rate=target_accept, adaptation_info_fn=_info())
-        (state, params), info = adapt.run(key, position, num_steps)
-        return state, params["step_size"], params["inverse_mass_matrix"], jnp.sum(info.info.num_integration_steps)
 
-    return jax.vmap(one, in_axes=(0, 0, None))(keys, positions, imm0)
+def _history_flips(logdensity, coords, key, state):
+    """After a NUTS step, a Metropolis move per hysteresis run that reflects the friction state
+    before its first sample, z0 → −z0 (u → −u): the unit was last loaded one way or the other
+    before the file began, and a measured loop can fit both histories, separated by a valley at
+    z0 ≈ 0 that NUTS's trajectories do not cross (on the measured baseline pos6 loop: modes at
+    z0 ≈ −0.92 and +0.9; one chain of four switched once in 1000 draws, R̂ 1.12). The
+    reflection is an involution of unit Jacobian in the sampler's coordinates, and the noise
+    coordinates (the only ones with a log-Jacobian) are unchanged, so its acceptance is the
+    ratio of the densities; a move costs one gradient (the state's, kept for NUTS)."""
+    nuts = _bj().nuts
+    for k, i in zip(jax.random.split(key, len(coords.history)), coords.history):
+        u, _ = coords.to_u(state.position)
+        flipped = nuts.init(coords.from_u(u.at[i].multiply(-1.0)), logdensity)
+        take = jnp.log(jax.random.uniform(k)) < flipped.logdensity - state.logdensity
+        state = jax.tree_util.tree_map(lambda a, b: jnp.where(take, a, b), flipped, state)
+    return state
 
 
 @eqx.filter_jit
-def _sample_block(problem, coords, key, states, step_size, imm, n: int):
-    """``n`` NUTS steps of every chain (vmapped over chains, scanned over steps)."""
+def _sample_block_one(problem, coords, key, state, step_size, imm, n: int):
+    """``n`` NUTS steps of one chain (scanned), each followed by :func:`_history_flips`."""
     logdensity = _log_density_fn(problem, coords)
-    n_chains = step_size.shape[0]
+    kernel = _bj().nuts(logdensity, step_size, imm)
 
-    def step(states, key):
-        keys = jax.random.split(key, n_chains)
-
-        def one(k, s, eps, m):
-            return _bj().nuts(logdensity, eps, m).step(k, s)
-
-        new, info = jax.vmap(one)(keys, states, step_size, imm)
-        u, logjac = jax.vmap(coords.to_u)(new.position)
+    def step(state, key):
+        key, k_flip = jax.random.split(key)
+        new, info = kernel.step(key, state)
+        if coords.history:
+            new = _history_flips(logdensity, coords, k_flip, new)
+        u, logjac = coords.to_u(new.position)
         out = (u, new.logdensity - logjac, info.is_divergent, info.num_trajectory_expansions,
                info.num_integration_steps, info.acceptance_rate)
         return new, out
 
-    return jax.lax.scan(step, states, jax.random.split(key, n))
+    return jax.lax.scan(step, state, jax.random.split(key, n))
+
+
+def _stack(trees):
+    return jax.tree_util.tree_map(lambda *xs: jnp.stack(xs), *trees)
+
+
+def _unstack(tree, n: int):
+    return [jax.tree_util.tree_map(lambda x: x[i], tree) for i in range(n)]
+
+
+def _per_chain(fn, n_chains: int, workers: int | None = None):
+    """[fn(i) for i in range(n_chains)], the chains on a pool of threads (one per core, at most
+    one per chain). Each chain is its own compiled program, not a lane of one vmapped program:
+    a vmapped gradient through the model's scan over thousands of samples cost more per chain
+    than the chains one after the other (data/paper-small, 4 chains: 11 ms against 4 × 2.2 ms),
+    and XLA runs the calls of two threads on two cores at once."""
+    workers = max(1, min(n_chains, workers or os.cpu_count() or 1))
+    run = in_float64(fn)  # the float64 switch is thread-local
+    if workers == 1:
+        return [run(i) for i in range(n_chains)]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(workers) as pool:
+        return list(pool.map(run, range(n_chains)))
+
+
+def _warmup(problem, coords, keys, positions, imm0, step0, num_steps: int, target_accept: float):
+    """Window adaptation per chain (:func:`_per_chain`): (last states stacked, step sizes,
+    inverse mass matrices, leapfrog steps per chain over the warm-up)."""
+    out = _per_chain(lambda i: _warmup_one(problem, coords, keys[i], positions[i], imm0, step0, num_steps,
+                                           target_accept), len(positions))
+    return tuple(_stack(x) for x in zip(*out))
+
+
+def _sample_block(problem, coords, key, states, step_size, imm, n: int):
+    """``n`` NUTS steps of every chain (:func:`_per_chain`; chain i draws with the key
+    ``fold_in(key, i)``): (states stacked, outputs (steps, chains, …))."""
+    n_chains = int(step_size.shape[0])
+    each = _unstack(states, n_chains)
+    out = _per_chain(lambda i: _sample_block_one(problem, coords, jax.random.fold_in(key, i), each[i], step_size[i],
+                                                 imm[i], n), n_chains)
+    new = _stack([o[0] for o in out])
+    return new, tuple(jnp.stack(x, axis=1) for x in zip(*(o[1] for o in out)))
 
 
 @eqx.filter_jit
