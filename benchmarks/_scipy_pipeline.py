@@ -45,7 +45,7 @@ from scipy.optimize import least_squares
 from torsionfit.fit._denoise import denoise_torque
 from torsionfit.fit._map import same_optimum
 from torsionfit.fit._prior import build_priors
-from torsionfit.fit._problem import AR1_MIN_SAMPLES, NOISE_PRIOR_SD, RHO_PRIOR_SD, _hat_basis, _knot_indices
+from torsionfit.fit._problem import AR1_MIN_SAMPLES, NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD, _hat_basis, _knot_indices
 from torsionfit.io import HysteresisRun
 from torsionfit.model import Parameter
 from torsionfit.sample._emcee import (_burn_thin, _check, _regularised_cov, _retire_if_rejected, _tau,
@@ -59,7 +59,7 @@ PHYSICS = (
     Parameter("gap", "positive", "rad", "geometric gap β"),
     Parameter("gap_torque", "positive", "N·m", "mesh torque τ_β over which the gap closes"),
 )
-_RHO_MAX = 0.995
+_RHO_CAP = RHO_MAX * (1.0 - 1e-3)
 _LOG_2PI = math.log(2.0 * math.pi)
 
 
@@ -220,7 +220,7 @@ class NumpyProblem:
         n = self.n_nonlinear
         s = np.exp(u[..., n])
         sigma = np.sqrt(s**2 + self.floor**2)
-        rho = 1.0 / (1.0 + np.exp(-u[..., n + 1])) if self.ar1 else np.zeros_like(s)
+        rho = RHO_MAX / (1.0 + np.exp(-u[..., n + 1])) if self.ar1 else np.zeros_like(s)
         return sigma, rho
 
     def _scales(self, slope, sigma):
@@ -378,12 +378,12 @@ def _noise_update(problem: NumpyProblem, u):
     out = []
     if problem.ar1:
         e0 = e - np.mean(e)
-        rho = float(np.clip(np.dot(e0[1:], e0[:-1]) / max(np.dot(e0, e0), 1e-300), 0.01, _RHO_MAX))
+        rho = float(np.clip(np.dot(e0[1:], e0[:-1]) / max(np.dot(e0, e0), 1e-300), 0.01, _RHO_CAP))
     var = float(np.mean((e[1:] - rho * e[:-1]) ** 2))
     floor2 = problem.floor**2
     out.append(0.5 * math.log(max(var - floor2, max(1e-4 * max(floor2, var), 1e-30))))
     if problem.ar1:
-        out.append(math.log(rho) - math.log1p(-rho))
+        out.append(math.log(rho) - math.log(RHO_MAX - rho))
     return np.array(out)
 
 
@@ -400,7 +400,8 @@ def laplace_covariance(problem: NumpyProblem, u) -> np.ndarray:
     cov[n, n] = min((sigma**2 / max(s2, 1e-300)) ** 2 / (2 * count), NOISE_PRIOR_SD**2)
     if problem.ar1:
         p = float(rho)
-        cov[n + 1, n + 1] = min((1 - p**2) / (count * max(p * (1 - p), 1e-12) ** 2), RHO_PRIOR_SD**2)
+        q = p / RHO_MAX
+        cov[n + 1, n + 1] = min((1 - p**2) / (count * max(RHO_MAX * q * (1 - q), 1e-12) ** 2), RHO_PRIOR_SD**2)
     return cov
 
 

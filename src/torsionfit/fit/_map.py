@@ -14,9 +14,10 @@ import numpy as np
 import optimistix as optx
 
 from .._x64 import in_float64
-from ._problem import NOISE_PRIOR_SD, RHO_PRIOR_SD, FitProblem
+from ._problem import NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD, FitProblem
 
-_RHO_MAX = 0.995
+#: the closed-form ρ is capped just inside the density's bound ρ_max (where u would be infinite)
+_RHO_CAP = RHO_MAX * (1.0 - 1e-3)
 
 
 def _lm_residuals(u_phys, args):
@@ -49,8 +50,8 @@ def _noise_update(problem: FitProblem, u):
             # runs sharing one zero offset) stays in its innovations — with ρ of the demeaned
             # residual (≈ 0 for a level plus white noise) that level counted as white noise, and a
             # diagnose refit that removed a periodic error scored below the model without it
-            rho = jnp.clip(jnp.dot(e[1:], e[:-1]) / jnp.maximum(jnp.dot(e[:-1], e[:-1]), 1e-300), 0.01, _RHO_MAX)
-            logits.append(jnp.log(rho) - jnp.log1p(-rho))
+            rho = jnp.clip(jnp.dot(e[1:], e[:-1]) / jnp.maximum(jnp.dot(e[:-1], e[:-1]), 1e-300), 0.01, _RHO_CAP)
+            logits.append(jnp.log(rho) - jnp.log(RHO_MAX - rho))
         innov2 = (e[1:] - rho * e[:-1]) ** 2
         floor2 = problem.floors[r] ** 2
         if problem.noise_shape is not None:
@@ -94,7 +95,7 @@ _laplace_parts = eqx.filter_jit(laplace_parts)
 def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
     """Laplace covariance of u at the MAP: Gauss–Newton (JᵀJ)⁻¹ for the physics (J of the
     whitened residuals and prior pseudo-residuals), the asymptotic variances for the noise
-    parameters (var log σ ≈ 1/2N, var ρ ≈ (1 − ρ²)/N, mapped to s and logit ρ and capped by
+    parameters (var log σ ≈ 1/2N, var ρ ≈ (1 − ρ²)/N, mapped to s and logit(ρ/ρ_max) and capped by
     their priors). The two blocks are taken as uncorrelated, as they are asymptotically."""
     jac, sigma, rho, _ = _laplace_parts(problem, jnp.asarray(u))
     return laplace_from_parts(problem, u, jac, sigma, rho)
@@ -117,8 +118,8 @@ def laplace_from_parts(problem: FitProblem, u, jac, sigma, rho) -> np.ndarray:
         cov[n + r, n + r] = var_log_s[r]
     k = n + problem.n_runs
     for r in np.flatnonzero(problem.ar1):
-        p = rho[r]
-        var = (1 - p**2) / (counts[r] * max(p * (1 - p), 1e-12) ** 2)
+        p, q = rho[r], rho[r] / RHO_MAX  # dρ/du = ρ_max q (1 − q)
+        var = (1 - p**2) / (counts[r] * max(RHO_MAX * q * (1 - q), 1e-12) ** 2)
         cov[k, k] = min(var, RHO_PRIOR_SD**2)
         k += 1
     return cov

@@ -211,7 +211,8 @@ def auto_switch_rule(max_steps: int, tau_factor: float = 50.0):
             n_star = (need / n_steps**power) ** (1.0 / (1.0 - power))
             if n_star <= max_steps:
                 return None
-            reach = f"only after about {n_star:.0f} steps"
+            reach = (f"only after about {n_star:.0f} steps" if n_star < 100 * max_steps
+                     else f"only after more than {100 * max_steps} steps")
         else:
             reach = "never"
         return (f"emcee after {n_steps} steps: τ_max grew from {prev['tau']:.0f} to {tau_max:.0f} steps since "
