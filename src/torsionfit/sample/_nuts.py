@@ -35,7 +35,7 @@ Choices, and why:
   rule then rejects the run; 0.9 left none on seeds 0 and 1, for ~35 % more leapfrog steps
   per draw).
 - **Budget**: after the warm-up, draws in blocks; the chains are checked after
-  ``initial_draws`` draws each and their length doubled until converged or ``max_draws``.
+  ``initial_draws`` draws each and their length grown by half (at least a block) until converged or ``max_draws``.
   Every draw after the warm-up is kept (no thinning: NUTS draws are nearly independent).
 - **Convergence** (the rule the fit reports): every entry of u has rank-normalised split R̂ ≤
   ``rhat_max`` (1.01), bulk and tail ESS ≥ ``min_ess`` (400), and no divergent transition
@@ -578,13 +578,13 @@ def _load(path) -> dict | None:
 
 # --- the sampler ---------------------------------------------------------------------------
 @in_float64
-def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int = 1000,
+def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int = 500,
              initial_draws: int = 500, max_draws: int = 4000, target_accept: float = 0.9,
              rhat_max: float = 1.01, min_ess: float = 400.0, backend_path=None, resume: bool = False,
              progress: bool = True) -> NutsResult:
     """Sample the posterior of ``problem`` with NUTS, started from ``map_result``'s Laplace
     approximation (``.u``, ``.cov``, ``.names``): ``n_chains`` chains, ``n_warmup`` adaptation
-    steps each, then ``initial_draws`` draws per chain, doubled until the convergence rule
+    steps each, then ``initial_draws`` draws per chain, grown by half until the convergence rule
     (module docstring) holds or ``max_draws`` is reached — then ``converged=False`` with the
     reason and a :class:`ConvergenceWarning`. ``backend_path``: a ``.npz`` file holding the
     state after every block; ``resume=True`` continues from it (same draws as a run without
@@ -655,7 +655,7 @@ def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int
             f"{np.mean(blocks['leapfrog']):.1f} leapfrog steps per draw")
         if converged or n_div or n_draws >= max_draws:
             break  # more draws do not remove divergences
-        target = min(2 * n_draws, max_draws)
+        target = min(n_draws + max(BLOCK, n_draws // 2), max_draws)
     if not converged:
         reason = f"not converged after {n_draws} draws per chain (max_draws = {max_draws}): {reason}"
         warnings.warn(f"nuts: {reason}", ConvergenceWarning, stacklevel=3)  # 3: past the float64 wrapper
