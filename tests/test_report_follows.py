@@ -10,7 +10,7 @@ import pytest
 from torsionfit.bench import load_bench, simulate
 from torsionfit.io import HysteresisRun
 from torsionfit.report import FitOptions
-from torsionfit.report._follows import runs_not_followed, straight_line_rmse
+from torsionfit.report._follows import runs_left_by_posterior, runs_not_followed, straight_line_rmse
 
 BENCH = Path(__file__).parent / "benches" / "rv_small_base.toml"
 
@@ -41,6 +41,19 @@ def test_only_hysteresis_runs_worse_than_their_line_are_named():
     assert got[0]["rmse_arcsec"] == pytest.approx(2.0 * got[0]["line_rmse_arcsec"])
     # residuals that do not belong to the run's samples are not judged
     assert runs_not_followed([bad], [np.full(tau.size - 1, 2.0 * line)]) == []
+
+
+def test_a_posterior_that_leaves_the_map_or_the_line_is_named():
+    """The posterior's median is held to the straight line and to twice the MAP's RMSE."""
+    tau = np.linspace(-5.0, 5.0, 50)
+    angle = 1e-3 * tau + np.where(np.arange(tau.size) % 2, 1e-4, -1e-4)
+    line = straight_line_rmse(tau, angle)
+    run = _run("loop", tau, angle)
+    small = np.full(tau.size, 0.1 * line)
+    assert runs_left_by_posterior([run], [1.5 * small], [small]) == []
+    far = runs_left_by_posterior([run], [2.5 * small], [small])
+    assert [b["run"] for b in far] == ["loop"] and far[0]["map_rmse_arcsec"] < far[0]["rmse_arcsec"]
+    assert runs_left_by_posterior([run], [np.full(tau.size, 1.1 * line)], [np.full(tau.size, 0.9 * line)])
 
 
 @pytest.fixture(scope="module")

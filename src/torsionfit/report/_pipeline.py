@@ -26,7 +26,7 @@ from ..io import Campaign, decimate
 from ..model import model_with_effects
 from ..units import ANGLE_UNITS
 from ._derived import derived_metrics_for
-from ._follows import not_followed_reason, runs_not_followed
+from ._follows import left_by_posterior_reason, not_followed_reason, runs_left_by_posterior, runs_not_followed
 
 ARCSEC = ANGLE_UNITS["arcsec"]
 #: progress lines (INFO); the command line shows them on stderr unless --quiet
@@ -379,6 +379,16 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
         diagnostics["converged"] = False
         diagnostics["reason"] = "; ".join(x for x in (reason, diagnostics.get("reason", "")) if x)
         warnings.warn(reason, ConvergenceWarning)
+    if options.sampler != "laplace" and not not_followed:
+        left = runs_left_by_posterior(campaign.runs, _residuals(problem, jnp.asarray(np.median(draws_u, axis=0))),
+                                      residuals)
+        diagnostics["posterior_follows_data"] = not left
+        if left:
+            reason = left_by_posterior_reason(left)
+            diagnostics["left_by_posterior"] = left
+            diagnostics["converged"] = False
+            diagnostics["reason"] = "; ".join(x for x in (reason, diagnostics.get("reason", "")) if x)
+            warnings.warn(reason, ConvergenceWarning)
     return CampaignFit(campaign=campaign, options=options, problem=problem, map_result=map_result,
                        draws_u=np.asarray(draws_u), metric_specs=derived.specs, metric_draws=metric_draws,
                        diagnostics=diagnostics, rmse_arcsec=rmse, tree_source=tree, sample_result=sample_result,
