@@ -5,6 +5,7 @@ choice. Recovery on SYNTHETIC bench campaigns and agreement with emcee are slow 
 
 import dataclasses
 import json
+import tempfile
 import warnings
 from pathlib import Path
 from types import SimpleNamespace
@@ -135,13 +136,28 @@ def test_noise_coordinates_round_trip_with_their_log_jacobian():
     assert np.array_equal(ident.to_u(x)[0], x) and float(ident.to_u(x)[1]) == 0.0
 
 
-def _te_only_problem(kinds=("transmission_error",)):
-    """The fit's problem of a small SYNTHETIC TE campaign (stat_te_only.toml), optionally with
-    a hysteresis run of the statistics bench in front."""
+NO_LOAD_RUNS = "".join(f"""
+[[runs]]
+name = "te-0-{tag}"
+kind = "transmission_error"
+speed_rpm = 5.0
+torque_Nm = 0.0
+direction = "{way}"
+""" for tag, way in (("fw", "forward"), ("bw", "backward")))
+
+
+def _te_only_problem(kinds=("transmission_error",), no_load=True):
+    """The fit's problem of a small SYNTHETIC TE campaign (stat_te_only.toml: loaded runs, and
+    with ``no_load`` a no-load run in each direction), optionally with a hysteresis run of the
+    statistics bench in front."""
     from torsionfit.bench import load_bench, simulate
     from torsionfit.report._pipeline import prepare_fit
 
-    campaign = simulate(load_bench(BENCHES / "stat_te_only.toml"), seed=1).campaign
+    text = (BENCHES / "stat_te_only.toml").read_text() + (NO_LOAD_RUNS if no_load else "")
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "stat_te_only.toml"
+        path.write_text(text)
+        campaign = simulate(load_bench(path), seed=1).campaign
     if "hysteresis" in kinds:
         loop = simulate(load_bench(BENCHES / "stat_rv_white.toml"), seed=1).campaign.hysteresis_runs[0]
         campaign = dataclasses.replace(campaign, runs=(loop,) + campaign.runs)
@@ -182,6 +198,30 @@ def test_lost_motion_pair_of_a_te_only_campaign():
     assert isinstance(with_loop.model.backlash, SmoothBacklash)
     assert "gap_torque" in [p.name for p in with_loop.physics]
     assert Coordinates.of(with_loop).lost_motion == ()
+
+
+def test_a_campaign_of_loaded_te_runs_takes_the_gap_closed():
+    """Without a no-load run nothing sees the gap open: the fit takes it closed in every run
+    (no closing share to sample), and NUTS's lost-motion pair is (w_a, w_b) alone, a
+    volume-preserving bijection that round-trips."""
+    from torsionfit.model import ClosedGapBacklash
+
+    problem = _te_only_problem(no_load=False)
+    assert isinstance(problem.model.backlash, ClosedGapBacklash)
+    names = [p.name for p in problem.physics]
+    assert "gap_closure" not in names and "gap_torque" not in names
+    i_gap, i_fric, i_k = (names.index(n) for n in ("gap", "friction_torque", "stiffness"))
+    coords = Coordinates.of(problem)
+    assert coords.lost_motion == (i_gap, i_fric, i_k, None)
+    u = jnp.asarray(np.random.default_rng(0).normal(size=problem.dim)).at[i_k].set(np.log(1.2e6))
+    coords = coords._with_compliance(u)
+    w = coords.from_u(u)
+    np.testing.assert_allclose(coords.to_u(w)[0], u, atol=1e-12)
+    plain = dataclasses.replace(coords, noise=(0, 0), ar1=(0, 0))
+    jac = np.asarray(jax.jacfwd(lambda v: plain.to_u(v)[0])(w))
+    assert abs(np.linalg.det(jac)) == pytest.approx(1.0, rel=1e-9)
+    theta = np.asarray(problem.model.backlash({"gap": 2e-4}, jnp.array([-150.0, 101.0])))
+    np.testing.assert_allclose(theta, [-1e-4, 1e-4])
 
 
 def test_whitening_follows_the_curvature_of_the_density_sampled():

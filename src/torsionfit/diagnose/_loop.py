@@ -97,7 +97,7 @@ def fit_with(campaign: Campaign, effects: dict, options: DiagnoseOptions, seed: 
     because its own starts (from the prior) fell into a worse optimum."""
     t0 = time.perf_counter()
     model = model_with_effects([r.kind for r in campaign.runs], effects, campaign.reducer.rated_torque_Nm,
-                               free_friction_start=True, fitted=True)
+                               free_friction_start=True, fitted=True, te_loads_Nm=[r.torque_Nm for r in campaign.te_runs])
     problem = build_problem(campaign, model, options.noise)
     names = [r.name for r in campaign.runs]
     starts = None

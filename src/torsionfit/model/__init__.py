@@ -3,6 +3,7 @@
 
 from ._backlash import (
     AbstractBacklash as AbstractBacklash,
+    ClosedGapBacklash as ClosedGapBacklash,
     FrictionClosureBacklash as FrictionClosureBacklash,
     NoBacklash as NoBacklash,
     PreloadedBacklash as PreloadedBacklash,

@@ -52,6 +52,24 @@ class FrictionClosureBacklash(AbstractBacklash):
         return 0.5 * params["gap"] * jnp.tanh(mesh_torque_Nm * rate)
 
 
+class ClosedGapBacklash(AbstractBacklash):
+    """``θ_g = (β/2)·sgn(τ_m)``: the gap closed, on the flank the mesh torque presses.
+
+    The fitted backlash of campaigns whose every run is a loaded TE run. Their mesh torque is
+    the load plus the sliding friction, far from zero, so the gap is closed in each and shows
+    only in the lost motion between the directions; how it closes below the lightest load is
+    seen by no run. :class:`FrictionClosureBacklash` there leaves the share q closed at no load
+    to its prior, cut off where the lightest run would see the gap still opening — a wall whose
+    place moves with the friction level, which NUTS crossed with dozens of divergent
+    transitions (SYNTHETIC TE campaign at 100–380 N·m)."""
+
+    def parameters(self):
+        return (Parameter("gap", "positive", "rad", "geometric gap β (lost motion of the mesh)"),)
+
+    def __call__(self, params, mesh_torque_Nm):
+        return 0.5 * params["gap"] * jnp.sign(mesh_torque_Nm)
+
+
 class PreloadedBacklash(AbstractBacklash):
     """A gap held closed by a preload, as in split-pinwheel (anti-backlash) designs: the two
     halves press on opposite flanks, so the mesh carries torque without lost motion until

@@ -1,7 +1,7 @@
 """Switching model extensions on by name (the effects catalog's names, DESIGN §3)."""
 
 from .._errors import InputError
-from ._backlash import FrictionClosureBacklash, PreloadedBacklash, SmoothBacklash
+from ._backlash import ClosedGapBacklash, FrictionClosureBacklash, PreloadedBacklash, SmoothBacklash
 from ._campaign_model import CampaignModel
 from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, ThreeSegmentCompliance
 from ._creep import Creep
@@ -13,15 +13,16 @@ from ._temperature import TemperatureDependence
 
 
 def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="auto", free_friction_start: bool = False,
-                       fitted: bool = False) -> CampaignModel:
+                       fitted: bool = False, te_loads_Nm=None) -> CampaignModel:
     """The base model plus the extensions named in ``effects`` (the catalog names of
     DESIGN §3: ``stiffness_nonlinearity``, ``rate_dependence``, ``kinematic_error``,
     ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``,
     ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``, ``gap_preload``), as a bench file's ``[effects]``
     table or a user's switches give them. ``fitted``: the model a fit estimates, whose gap
     is :class:`FrictionClosureBacklash` when no run is a hysteresis run (the same curve, with the
-    share of the gap closed at no load in place of a closing torque the data cannot see); a
-    simulation keeps :class:`SmoothBacklash`."""
+    share of the gap closed at no load in place of a closing torque the data cannot see), or
+    :class:`ClosedGapBacklash` when ``te_loads_Nm`` (the TE runs' loads) has no run at no load
+    (nothing then sees the gap open); a simulation keeps :class:`SmoothBacklash`."""
     compliance = LinearCompliance()
     nonlin = effects.get("stiffness_nonlinearity")
     if nonlin in (True, "three_segment"):
@@ -56,7 +57,11 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         raise InputError(f"[effects].gap_preload: expected true or false, got {preload!r}")
     if preload and closed:
         raise InputError("[effects].gap_preload: needs a hysteresis run (a TE run sees the gap closed or at its no-load share, never the preload)")
-    backlash = FrictionClosureBacklash() if closed else PreloadedBacklash() if preload else SmoothBacklash()
+    if closed:
+        loaded = te_loads_Nm is not None and len(te_loads_Nm) > 0 and min(abs(float(t)) for t in te_loads_Nm) > 0
+        backlash = ClosedGapBacklash() if loaded else FrictionClosureBacklash()
+    else:
+        backlash = PreloadedBacklash() if preload else SmoothBacklash()
     return CampaignModel(
         backlash=backlash,
         temperature=_temperature(effects.get("temperature_dependence", False)),

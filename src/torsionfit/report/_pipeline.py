@@ -132,7 +132,7 @@ def campaign_model(campaign: Campaign, options: FitOptions = FitOptions()):
     """The model :func:`fit_campaign` fits to ``campaign`` with ``options``."""
     kinds = [r.kind for r in campaign.runs]
     return model_with_effects(kinds, options.effects, campaign.reducer.rated_torque_Nm, free_friction_start=True,
-                              fitted=True)
+                              fitted=True, te_loads_Nm=[r.torque_Nm for r in campaign.te_runs])
 
 
 @in_float64

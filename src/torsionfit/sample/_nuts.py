@@ -239,7 +239,9 @@ class Coordinates(eqx.Module):
         if self.lost_motion:  # volume-preserving: no Jacobian term
             i_gap, i_fric, _, i_q = self.lost_motion
             log_gap = w[i_gap] - jnp.logaddexp(-jnp.log(2.0), w[i_fric] + self.log_compliance)
-            u = u.at[i_gap].set(log_gap).at[i_fric].set(log_gap + w[i_fric]).at[i_q].set(log_gap - w[i_q])
+            u = u.at[i_gap].set(log_gap).at[i_fric].set(log_gap + w[i_fric])
+            if i_q is not None:
+                u = u.at[i_q].set(log_gap - w[i_q])
         return u, logjac
 
     def _with_compliance(self, u_map) -> "Coordinates":
@@ -249,17 +251,18 @@ class Coordinates(eqx.Module):
         return eqx.tree_at(lambda c: c.log_compliance, self, log_c, is_leaf=lambda x: x is None)
 
     def _pair_indices(self) -> list:
-        """u indices of log β, log T_f and logit q (the entries the lost-motion map mixes)."""
+        """u indices of log β, log T_f and (when the gap has one) logit q: the entries the
+        lost-motion map mixes."""
         i_gap, i_fric, _, i_q = self.lost_motion
-        return [i_gap, i_fric, i_q]
+        return [i_gap, i_fric] + ([] if i_q is None else [i_q])
 
-    def _pair_w(self, log_gap, log_fric, logit_q):
-        return (jnp.logaddexp(log_gap - jnp.log(2.0), log_fric + self.log_compliance), log_fric - log_gap,
-                log_gap - logit_q)
+    def _pair_w(self, log_gap, log_fric, logit_q=None):
+        out = (jnp.logaddexp(log_gap - jnp.log(2.0), log_fric + self.log_compliance), log_fric - log_gap)
+        return out if logit_q is None else out + (log_gap - logit_q,)
 
     def _pair_dw_du(self, u):
-        """d(w_a, w_b, w_c)/d(log β, log T_f, logit q) at ``u`` (3 × 3)."""
-        return jax.jacfwd(lambda v: jnp.stack(self._pair_w(v[0], v[1], v[2])))(u[jnp.asarray(self._pair_indices())])
+        """d(w_a, w_b[, w_c])/d(log β, log T_f[, logit q]) at ``u`` (2 × 2 or 3 × 3)."""
+        return jax.jacfwd(lambda v: jnp.stack(self._pair_w(*v)))(u[jnp.asarray(self._pair_indices())])
 
     def from_u(self, u):
         """w of u (the inverse of :meth:`to_u`)."""
@@ -274,8 +277,10 @@ class Coordinates(eqx.Module):
             w = w.at[c:d].set(self._softplus_inv(atanh / self.ar1_scale))
         if self.lost_motion:
             i_gap, i_fric, _, i_q = self.lost_motion
-            wa, wb, wc = self._pair_w(u[i_gap], u[i_fric], u[i_q])
-            w = w.at[i_gap].set(wa).at[i_fric].set(wb).at[i_q].set(wc)
+            pair = self._pair_w(*(u[i] for i in self._pair_indices()))
+            w = w.at[i_gap].set(pair[0]).at[i_fric].set(pair[1])
+            if i_q is not None:
+                w = w.at[i_q].set(pair[2])
         if self.chol is None:
             return w
         return jax.scipy.linalg.solve_triangular(self.chol, w - self.shift, lower=True)
@@ -288,19 +293,20 @@ class Coordinates(eqx.Module):
 
 
 def _lost_motion_pair(problem) -> tuple:
-    """(u index of the gap, of the friction level, of the stiffness, of the gap's closure) when ``problem``'s gap is
-    :class:`~torsionfit.model.FrictionClosureBacklash` (a campaign without hysteresis runs) and
-    its compliance is one stiffness; else ()."""
-    from ..model import FrictionClosureBacklash
+    """(u index of the gap, of the friction level, of the stiffness, of the gap's closure or
+    None) when ``problem``'s gap is :class:`~torsionfit.model.FrictionClosureBacklash` or
+    :class:`~torsionfit.model.ClosedGapBacklash` (campaigns without hysteresis runs) and its
+    compliance is one stiffness; else ()."""
+    from ..model import ClosedGapBacklash, FrictionClosureBacklash
 
     model = getattr(problem, "model", None)
-    if model is None or not isinstance(model.backlash, FrictionClosureBacklash):
+    if model is None or not isinstance(model.backlash, (FrictionClosureBacklash, ClosedGapBacklash)):
         return ()
     names = problem.names([""] * problem.n_runs)  # the problem's own layout of u
-    keys = ("gap", "friction_torque", "stiffness", "gap_closure")
+    keys = ("gap", "friction_torque", "stiffness") + (("gap_closure",) if "gap_closure" in names else ())
     if not all(k in names for k in keys):
         return ()
-    return tuple(names.index(k) for k in keys)
+    return tuple(names.index(k) for k in keys) + ((None,) if len(keys) == 3 else ())
 
 
 # --- the whitening: the mode and curvature of the density sampled --------------------------------
