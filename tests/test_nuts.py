@@ -65,8 +65,10 @@ def test_nuts_samples_a_gaussian_and_reports_its_statistics():
 
 
 def test_nuts_flags_the_divergences_of_a_funnel():
-    """Started from a Gaussian guess of the funnel: the neck gives divergent transitions, so
-    the run is not converged and says why — whatever R̂ and ESS say."""
+    """Started from a Gaussian guess of the funnel: the neck gives divergent transitions; the
+    run adapts again at a higher target acceptance (0.9 → 0.95 → 0.975), still diverges (no
+    step size follows the neck) and is not converged, says why — whatever R̂ and ESS say —
+    and keeps only the draws of its last adaptation."""
     problem = Funnel()
     start = SimpleNamespace(u=np.zeros(5), cov=np.diag([9.0] + [1.0] * 4), names=None)
     with pytest.warns(ConvergenceWarning, match="divergent"):
@@ -74,6 +76,8 @@ def test_nuts_flags_the_divergences_of_a_funnel():
     assert res.n_divergent > 0 and not res.converged
     assert "divergent transitions" in res.reason
     assert res.diverging.dtype == bool and res.diverging.sum() == res.n_divergent
+    assert res.target_accept == pytest.approx(0.975) and "raised from 0.9" in res.moves, res.moves
+    assert res.n_warmup == 3 * FAST["n_warmup"] and res.chain.shape[0] == res.diverging.shape[0]
 
 
 def test_budget_reached_gives_unconverged_with_warning():
