@@ -300,6 +300,17 @@ def _laplace_tree(problem, map_result, draws_u, names, specs, metric_draws, camp
                        seed=seed)
 
 
+def _mark_not_converged(diagnostics: dict, key: str, runs, reason: str) -> None:
+    """A fit that does not draw the data: ``runs`` under ``key``, not converged, ``reason``
+    first in the reason, and a warning."""
+    from ..sample import ConvergenceWarning
+
+    diagnostics[key] = runs
+    diagnostics["converged"] = False
+    diagnostics["reason"] = "; ".join(x for x in (reason, diagnostics.get("reason", "")) if x)
+    warnings.warn(reason, ConvergenceWarning)
+
+
 @in_float64
 def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_result, seed: int,
                sample_result=None) -> CampaignFit:
@@ -312,7 +323,7 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     rng = np.random.default_rng(seed)
     if options.sampler not in SAMPLERS:
         raise InputError(f"sampler must be one of {', '.join(SAMPLERS)}, got {options.sampler!r}")
-    from ..sample import ConvergenceWarning, convergence_summary, draw_thinning, pointwise_draw_limit, to_datatree
+    from ..sample import convergence_summary, draw_thinning, pointwise_draw_limit, to_datatree
 
     # draws the ArviZ tree can hold with its pointwise log-likelihood and predictive
     tree_limit = pointwise_draw_limit(sum(len(y) for y in problem.y))
@@ -374,21 +385,13 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     not_followed = runs_not_followed(campaign.runs, residuals)
     diagnostics["follows_data"] = not not_followed
     if not_followed:
-        reason = not_followed_reason(not_followed)
-        diagnostics["not_followed"] = not_followed
-        diagnostics["converged"] = False
-        diagnostics["reason"] = "; ".join(x for x in (reason, diagnostics.get("reason", "")) if x)
-        warnings.warn(reason, ConvergenceWarning)
+        _mark_not_converged(diagnostics, "not_followed", not_followed, not_followed_reason(not_followed))
     if options.sampler != "laplace" and not not_followed:
         left = runs_left_by_posterior(campaign.runs, _residuals(problem, jnp.asarray(np.median(draws_u, axis=0))),
                                       residuals)
         diagnostics["posterior_follows_data"] = not left
         if left:
-            reason = left_by_posterior_reason(left)
-            diagnostics["left_by_posterior"] = left
-            diagnostics["converged"] = False
-            diagnostics["reason"] = "; ".join(x for x in (reason, diagnostics.get("reason", "")) if x)
-            warnings.warn(reason, ConvergenceWarning)
+            _mark_not_converged(diagnostics, "left_by_posterior", left, left_by_posterior_reason(left))
     return CampaignFit(campaign=campaign, options=options, problem=problem, map_result=map_result,
                        draws_u=np.asarray(draws_u), metric_specs=derived.specs, metric_draws=metric_draws,
                        diagnostics=diagnostics, rmse_arcsec=rmse, tree_source=tree, sample_result=sample_result,
