@@ -297,16 +297,20 @@ class NumpyProblem:
         _, beta, _, _, _ = self.profile(u, pred)
         return self.y - (pred[0] + beta)
 
-    def lm_residuals(self, u_nl, u_noise, pred=None):
-        """fit_map's least-squares vector: whitened residuals, then the prior of the
-        non-linear block as pseudo-residuals; u_nl (n_nonlinear,) or a batch (W, ·) → (M[, W])."""
+    def lm_residuals(self, u_nl, u_noise, pred=None, with_scale: bool = True):
+        """fit_map's least-squares vector: whitened residuals, q_i = √(2 log(scale_i/σ)) (the
+        physics' share of −Σ log scale_i; ``with_scale=False``: without, the Gauss–Newton
+        part the Laplace covariance uses), then the prior of the non-linear block as
+        pseudo-residuals; u_nl (n_nonlinear,) or a batch (W, ·) → (M[, W])."""
         u_nl = np.asarray(u_nl, float)
-        if u_nl.ndim == 2:
-            u = np.concatenate([u_nl, np.broadcast_to(u_noise, (len(u_nl), len(u_noise)))], axis=1)
-            white = self.profile(u, pred)[0]
-            return np.concatenate([white, ((u_nl - self.prior_mean) / self.prior_sd).T], axis=0)
-        white = self.profile(np.concatenate([u_nl, u_noise]), pred)[0]
-        return np.concatenate([white, (u_nl - self.prior_mean) / self.prior_sd])
+        batch = u_nl.ndim == 2
+        u = (np.concatenate([u_nl, np.broadcast_to(u_noise, (len(u_nl), len(u_noise)))], axis=1) if batch
+             else np.concatenate([u_nl, u_noise]))
+        white, _, _, scales, _ = self.profile(u, pred)
+        sigma, _ = self.noise_values(u)
+        q = np.sqrt(np.maximum(2.0 * (np.log(scales) - np.log(sigma)), 0.0) + 1e-12)
+        prior = (u_nl - self.prior_mean) / self.prior_sd
+        return np.concatenate([white] + ([q] if with_scale else []) + [prior.T if batch else prior], axis=0)
 
 
 def build(campaign, *, latent_torque: bool = True, ar1: bool | None = None,
@@ -352,7 +356,7 @@ class MapResult:
     n_jev: int  # Jacobian evaluations (one batched model call each)
 
 
-def _fd_jacobian(problem: NumpyProblem, u_nl, u_noise, r0=None, central=False):
+def _fd_jacobian(problem: NumpyProblem, u_nl, u_noise, r0=None, central=False, with_scale=True):
     """Jacobian of ``lm_residuals`` w.r.t. u_nl by finite differences, every column in one
     walker-vectorised model call. Forward differences (MINPACK's step √ε·max(1, |u|)) for the
     optimiser; central differences (step ε^⅓·max(1, |u|)) for the Laplace covariance."""
@@ -361,7 +365,7 @@ def _fd_jacobian(problem: NumpyProblem, u_nl, u_noise, r0=None, central=False):
     if central:
         h = np.finfo(float).eps ** (1 / 3) * scale
         pts = np.concatenate([u_nl + np.diag(h), u_nl - np.diag(h)])
-        r = problem.lm_residuals(pts, u_noise)
+        r = problem.lm_residuals(pts, u_noise, with_scale=with_scale)
         return (r[:, :n] - r[:, n:]) / (2 * h)
     h = np.sqrt(np.finfo(float).eps) * scale
     pts = u_nl + np.diag(h)
@@ -377,8 +381,8 @@ def _noise_update(problem: NumpyProblem, u):
     rho = 0.0
     out = []
     if problem.ar1:
-        e0 = e - np.mean(e)
-        rho = float(np.clip(np.dot(e0[1:], e0[:-1]) / max(np.dot(e0, e0), 1e-300), 0.01, _RHO_CAP))
+        # not demeaned, the conditional MLE: as torsionfit's fit_map
+        rho = float(np.clip(np.dot(e[1:], e[:-1]) / max(np.dot(e[:-1], e[:-1]), 1e-300), 0.01, _RHO_CAP))
     var = float(np.mean((e[1:] - rho * e[:-1]) ** 2))
     floor2 = problem.floor**2
     out.append(0.5 * math.log(max(var - floor2, max(1e-4 * max(floor2, var), 1e-30))))
@@ -391,7 +395,7 @@ def laplace_covariance(problem: NumpyProblem, u) -> np.ndarray:
     """torsionfit's Laplace covariance: Gauss–Newton for the non-linear block, asymptotic
     variances for log s and logit ρ, the two blocks uncorrelated."""
     n = problem.n_nonlinear
-    jac = _fd_jacobian(problem, u[:n], u[n:], central=True)
+    jac = _fd_jacobian(problem, u[:n], u[n:], central=True, with_scale=False)
     cov = np.zeros((problem.dim, problem.dim))
     cov[:n, :n] = np.linalg.pinv(jac.T @ jac)
     sigma, rho = problem.noise_values(u)
@@ -406,7 +410,7 @@ def laplace_covariance(problem: NumpyProblem, u) -> np.ndarray:
 
 
 def fit_map(problem: NumpyProblem, *, n_starts: int = 4, seed: int = 0, max_nfev: int = 300,
-            noise_passes: int = 3, tol: float = 1e-8) -> MapResult:
+            noise_passes: int = 3, tol: float = 1e-8, polish_nfev: int = 1000) -> MapResult:
     """fit_map with scipy's MINPACK Levenberg–Marquardt; the same starts, passes (later passes
     shared by starts at one optimum) and Laplace covariance as torsionfit's."""
     rng = np.random.default_rng(seed)
@@ -417,7 +421,7 @@ def fit_map(problem: NumpyProblem, *, n_starts: int = 4, seed: int = 0, max_nfev
     iid = np.array([problem.noise_prior_mean] + ([-30.0] if problem.ar1 else []))
     n_fev = n_jev = 0
 
-    def one_pass(u_phys, u_noise):
+    def one_pass(u_phys, u_noise, max_nfev=max_nfev):
         nonlocal n_fev, n_jev
         cache = {}
 
@@ -444,7 +448,7 @@ def fit_map(problem: NumpyProblem, *, n_starts: int = 4, seed: int = 0, max_nfev
     for j in sorted(set(rep)):
         u_phys, u_noise, ok, message = firsts[j]
         for _ in range(noise_passes - 1):
-            u_phys, u_noise, ok, message = one_pass(u_phys, u_noise)
+            u_phys, u_noise, ok, message = one_pass(u_phys, u_noise, polish_nfev)
         u = np.concatenate([u_phys, u_noise])
         finals[j] = (u, problem.log_density(u), ok, message)
     best, records = None, []

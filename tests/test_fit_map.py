@@ -3,6 +3,7 @@ the one every start run through every pass would give (SYNTHETIC tests/benches/s
 
 from pathlib import Path
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
@@ -54,6 +55,18 @@ def test_shared_later_passes_give_the_map_of_every_start_run_alone(problem, monk
     best_u, best_ld = max(alone, key=lambda x: x[1])
     assert abs(result.log_density - best_ld) < 1e-8 * abs(best_ld)
     assert np.max(np.abs(result.u - best_u) / np.maximum(np.abs(best_u), 1.0)) < 1e-5
+
+
+def test_the_map_is_the_log_densitys_optimum_in_the_physics(problem):
+    """LM minimises the whitened residuals and the physics' share of −Σ log scale_i (the
+    errors-in-variables slope widens a sample's scale where the loop is steep): without that
+    share its optimum was not the posterior's (|∂ log p/∂u|·sd up to 0.06 here, and on measured
+    loops LM never settled), with it the gradient left is the linear block's log det only."""
+    result = fit_map(problem, n_starts=2, seed=0)
+    n = problem.n_nonlinear
+    grad = np.asarray(jax.grad(problem.log_density)(jnp.asarray(result.u)))[:n]
+    assert result.converged
+    assert np.max(np.abs(grad) * result.sd[:n]) < 0.01
 
 
 def test_a_nested_models_optimum_warm_starts_the_extension(problem):

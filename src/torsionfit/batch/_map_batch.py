@@ -69,11 +69,12 @@ def _serial(problems, run_names, seeds, **kwargs) -> list:
 @in_float64
 def fit_map_batch(problems: list, run_names: list, seeds: list[int], *, n_starts: int = 4,
                   max_steps: int = 300, noise_passes: int = 3, rtol: float = 1e-8,
-                  atol: float = 1e-10, lanes: Lanes = "auto") -> list:
+                  atol: float = 1e-10, lanes: Lanes = "auto", polish_steps: int = 300) -> list:
     """``fit_map`` of every problem (all of one shape) with its seed; one ``MapResult`` — or the
     exception ``fit_map`` raises for it (``RuntimeError`` when every start failed) — per unit.
     ``lanes``: see the module docstring."""
-    kwargs = dict(n_starts=n_starts, max_steps=max_steps, noise_passes=noise_passes, rtol=rtol, atol=atol)
+    kwargs = dict(n_starts=n_starts, max_steps=max_steps, noise_passes=noise_passes, rtol=rtol, atol=atol,
+                  polish_steps=polish_steps)
     if resolve_lanes(lanes) == "serial":
         return _serial(problems, run_names, seeds, **kwargs)
     if noise_passes < 1:
@@ -93,7 +94,7 @@ def fit_map_batch(problems: list, run_names: list, seeds: list[int], *, n_starts
     pick = lambda x: jnp.stack([x[i][lane_of[i]] for i in range(n_units)])  # noqa: E731
     later = jax.tree.map(pick, first)
     for _ in range(noise_passes - 1):
-        later = _pass(stacked, later[0], later[1], solver, max_steps)
+        later = _pass(stacked, later[0], later[1], solver, polish_steps)
     u_phys, u_noise, results, lds = later
     u_all = np.concatenate([np.asarray(u_phys), np.asarray(u_noise)], axis=-1)
     lds = np.asarray(lds, dtype=float)

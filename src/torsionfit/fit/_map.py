@@ -21,14 +21,35 @@ _RHO_CAP = RHO_MAX * (1.0 - 1e-3)
 
 
 def _lm_residuals(u_phys, args):
+    """Whitened residuals and prior pseudo-residuals: the Gauss–Newton part of the posterior."""
     problem, u_noise = args
     white, _, _ = problem.profile(jnp.concatenate([u_phys, u_noise]))
     return jnp.concatenate(white + [problem.prior_residuals(u_phys)])
 
 
+def _lm_objective_residuals(u_phys, args):
+    """What LM minimises: :func:`_lm_residuals` and, per hysteresis sample, q_i with ½ q_i² =
+    log(scale_i / σ_i) = ½ log(1 + (dθ̂/dτ̂)² var τ̂ / σ_i²), the part of the likelihood's
+    −Σ log scale_i that the physics moves through the errors-in-variables slope. Without it a
+    least-squares fit gains by steepening the loop (a larger scale shrinks every whitened
+    residual for free), its optimum is not the posterior's, and the noise passes between
+    solves pulled it back and forth: on measured loops LM reached its step limit and the log
+    density fell from pass to pass. Only the linear block's ½ log det A (a few dimensions)
+    is left out."""
+    problem, u_noise = args
+    u = jnp.concatenate([u_phys, u_noise])
+    white, _, _, scales = problem.profile(u, return_scales=True)
+    sigma = problem.sample_sigma(u)
+    # sqrt(x + tiny): smooth where the slope term vanishes (x ∝ slope², the derivative → 0)
+    q = [jnp.sqrt(jnp.maximum(2.0 * (jnp.log(sc) - jnp.log(sg)), 0.0) + 1e-12) * jnp.ones_like(sc)
+         for sc, sg in zip(scales, sigma)]
+    power = jnp.sqrt(problem.likelihood_power)
+    return jnp.concatenate([power * w for w in white] + [power * x for x in q] + [problem.prior_residuals(u_phys)])
+
+
 @eqx.filter_jit
 def _solve(problem: FitProblem, u_phys, u_noise, solver, max_steps: int):
-    sol = optx.least_squares(_lm_residuals, solver, u_phys, args=(problem, u_noise),
+    sol = optx.least_squares(_lm_objective_residuals, solver, u_phys, args=(problem, u_noise),
                              max_steps=max_steps, throw=False)
     return sol.value, sol.result, sol.stats["num_steps"]
 
@@ -238,14 +259,18 @@ def same_optimum(firsts) -> list[int]:
 @in_float64
 def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int = 0,
             max_steps: int = 300, noise_passes: int = 3, rtol: float = 1e-8,
-            atol: float = 1e-10, warm_starts=None) -> MapResult:
+            atol: float = 1e-10, warm_starts=None, polish_steps: int = 300) -> MapResult:
     """MAP by Levenberg–Marquardt from ``n_starts`` starts (the prior centre, then draws around
     it). The first pass treats the noise as iid (with ρ near 1 the whitened residuals are
     increments, and a fit from far away can match the loop's shape but not its level);
     between passes the noise level and AR(1) coefficient are re-estimated in closed form.
     Starts whose first pass ends at the same optimum (:data:`SAME_OPTIMUM_RTOL`) share the
     later passes: they would repeat the same steps from the same point. ``warm_starts``:
-    (k, n_nonlinear) further starting points tried first (e.g. a nested model's optimum)."""
+    (k, n_nonlinear) further starting points tried first (e.g. a nested model's optimum).
+    ``max_steps`` caps each start's first pass, ``polish_steps`` the later passes, which run
+    from near an optimum for the distinct optima only: on a long ridge (the compliance curve's
+    scale and exponent of a measured loop) LM may need more there (``fit_campaign`` gives
+    :attr:`FitOptions.map_polish_steps`; diagnose's screening fits keep this default)."""
     if noise_passes < 1:
         raise ValueError(f"noise_passes must be at least 1, got {noise_passes}")
     run_names = tuple(run_names or (f"run{i}" for i in range(problem.n_runs)))
@@ -258,7 +283,7 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     for j in sorted(set(rep)):
         u_phys, u_noise, result, ld = firsts[j]
         for _ in range(noise_passes - 1):
-            u_phys, u_noise, result, ld = _solve_pass(problem, u_phys, u_noise, solver, max_steps)
+            u_phys, u_noise, result, ld = _solve_pass(problem, u_phys, u_noise, solver, polish_steps)
         finals[j] = (np.concatenate([np.asarray(u_phys), np.asarray(u_noise)]), float(ld),
                      bool(result == optx.RESULTS.successful), _message(result))
     us, lds, oks, messages = zip(*(finals[r] for r in rep))

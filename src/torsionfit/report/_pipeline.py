@@ -61,6 +61,9 @@ class FitOptions:
     # widen the posterior when the whitened residuals keep structure the model lacks
     # (long-run variance ratio k > 1 at the MAP: likelihood to the power 1/k, fit/_misfit.py)
     misfit_inflation: bool = True
+    # LM steps of the MAP's later noise passes (from near an optimum): a measured loop's long
+    # ridges need more than diagnose's screening fits get (fit_map's default)
+    map_polish_steps: int = 1000
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,7 +155,8 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
     campaign, model, problem = prepare_fit(campaign, options)
     log.info("MAP from %d starts, %d parameters (the first fit of a model shape compiles it first)",
              options.n_starts, problem.dim)
-    map_result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed)
+    map_result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed,
+                         polish_steps=options.map_polish_steps)
     if options.misfit_inflation:
         problem, map_result = widen_for_misfit(problem, map_result)
     log.info("MAP %s; now the posterior (%s) and the metrics", "converged" if map_result.converged
