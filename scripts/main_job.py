@@ -20,6 +20,7 @@ from torsionfit.fit import build_problem, fit_map
 from torsionfit.io import decimate, load_campaign
 from torsionfit.metrics import campaign_metrics, format_metrics_table
 from torsionfit.model import model_with_effects
+from torsionfit.report import FitOptions
 from torsionfit.plots import component_draws, plot_loop_components
 from torsionfit.units import from_si
 
@@ -38,7 +39,8 @@ def fit_and_plot(campaign, effects, figure, source, run_index=0, seed=0):
     model = model_with_effects([r.kind for r in hyst.runs], effects, hyst.reducer.rated_torque_Nm,
                                free_friction_start=True)
     t0 = time.perf_counter()
-    result = fit_map(build_problem(hyst, model), [r.name for r in hyst.runs], n_starts=3)
+    result = fit_map(build_problem(hyst, model), [r.name for r in hyst.runs], n_starts=3,
+                     polish_steps=FitOptions().map_polish_steps)
     elapsed = time.perf_counter() - t0
     with torsionfit.float64():  # the model evaluated in the fit's precision
         comps = result.components()

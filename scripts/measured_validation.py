@@ -111,7 +111,8 @@ def validate(unit: str, folder: Path, args) -> dict:
                                          decimate=args.decimate, max_steps=args.max_steps,
                                          n_starts=args.starts, misfit_inflation=not args.no_misfit_inflation,
                                          noise=NoiseOptions(ar1=False if args.iid else None,
-                                                            cycle_amplitude_noise=args.cycle_noise)),
+                                                            cycle_amplitude_noise=args.cycle_noise,
+                                                            torque_error_variance=not args.no_torque_error_variance)),
                        seed=args.seed)
     seconds = time.perf_counter() - t0
     problem = fit.problem
@@ -365,7 +366,7 @@ def main(argv=None) -> int:
     parser.add_argument("--units", nargs="*", help="example manifest names (default: all 21)")
     parser.add_argument("--sampler", choices=("emcee", "laplace"), default="laplace")
     parser.add_argument("--decimate", type=int, default=16)
-    parser.add_argument("--starts", type=int, default=2)
+    parser.add_argument("--starts", type=int, default=FitOptions().n_starts, help="MAP starts (default: the fit's)")
     parser.add_argument("--draws", type=int, default=200, help="posterior draws for the predictive interval")
     parser.add_argument("--metric-draws", type=int, default=40, help="draws for the model's play and loading compliance")
     parser.add_argument("--max-steps", type=int, default=20_000)
@@ -373,6 +374,9 @@ def main(argv=None) -> int:
     parser.add_argument("--iid", action="store_true", help="iid noise instead of AR(1) (for comparison)")
     parser.add_argument("--no-misfit-inflation", action="store_true",
                         help="the posterior as the likelihood gives it, not widened for structure the residuals keep (fit/_misfit.py)")
+    parser.add_argument("--no-torque-error-variance", action="store_true",
+                        help="the angle noise alone, without the torque error through the loop's slope "
+                             "(NoiseOptions.torque_error_variance)")
     parser.add_argument("--cycle-noise", action="store_true",
                         help="noise level scaled by the amplitude of each sample's torque cycle (NoiseOptions.cycle_amplitude_noise)")
     parser.add_argument("--effects", type=json.loads, default=EFFECTS, help=f"model effects as JSON (default {json.dumps(EFFECTS)})")

@@ -417,3 +417,20 @@ def test_non_finite_or_ragged_hand_built_run_is_an_input_error(white_campaign, f
         bad = _replace_run(white_campaign, 0, **{field: values})
         match = "finite|NaN|nan value"
     _expect_input_error(bad, h.name, match)
+
+
+def test_torque_error_variance_can_be_switched_off():
+    """NoiseOptions.torque_error_variance=False: each hysteresis sample's innovation sd is the
+    angle noise alone; on (the default) the denoised torque's error adds where the loop is steep."""
+    campaign = simulate(load_bench(WHITE), seed=1).campaign
+    model = model_with_effects([r.kind for r in campaign.runs], {}, campaign.reducer.rated_torque_Nm,
+                               free_friction_start=True)
+    runs = [i for i, r in enumerate(campaign.runs) if r.kind == "hysteresis"]
+    for flag in (True, False):
+        problem = build_problem(campaign, model, NoiseOptions(torque_error_variance=flag))
+        u = jnp.concatenate([problem.prior_mean, problem.noise_prior_mean, jnp.zeros(problem.n_ar1)])
+        _, slopes = problem.prediction_and_torque_slope(u[:problem.n_nonlinear])
+        scales = problem.sample_scales(u, slopes)
+        sigma = problem.sample_sigma(u)
+        widened = max(float(jnp.max(scales[r] / sigma[r])) for r in runs)
+        assert (widened > 1.01) if flag else (widened == 1.0), (flag, widened)

@@ -65,6 +65,13 @@ class NoiseOptions:
     # measured loops whose misfit grows with the load: with one level for a whole file the
     # ±4 N·m play ramps sit far below the ±40 N·m ramps' misfit and the fit ignores them.
     cycle_amplitude_noise: bool = False
+    # True: the denoised drive torque's error enters each hysteresis sample's variance through
+    # the loop's local slope, (dθ̂/dτ̂)²·var τ̂ (errors in variables, linearised). False: the
+    # angle noise alone (the latent torque knots stay). The linearisation has no ceiling: where
+    # a model loop is steep (a sharp gap crossing) it lets a sample's variance grow without
+    # bound, and on measured loops the posterior's optimum uses that to explain misfit as torque
+    # error instead of fitting it (docs/validation.md).
+    torque_error_variance: bool = True
 
 
 CYCLE_NOISE_MIN_SHARE = 0.05  # smallest noise shape (share of the largest cycles' level)
@@ -495,7 +502,8 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
         prior_sd = np.concatenate([prior_sd, *knot_sd])
     return FitProblem(
         model=model, physics=physics, linear=linear, ar1=ar1, student_t_dof=noise.student_t_dof,
-        inputs=inputs, y=y, torque_var=[jnp.asarray(v) for v in torque_var], design=design, knot_basis=bases, floors=jnp.asarray(np.full(len(y), floor)),
+        inputs=inputs, y=y, torque_var=[jnp.asarray(v if noise.torque_error_variance else np.zeros_like(v)) for v in torque_var],
+        design=design, knot_basis=bases, floors=jnp.asarray(np.full(len(y), floor)),
         prior_mean=jnp.asarray(prior_mean), prior_sd=jnp.asarray(prior_sd), noise_prior_mean=jnp.asarray(np.log(1e-2 * ranges)),
         noise_shape=shape,
     )
