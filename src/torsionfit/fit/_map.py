@@ -41,8 +41,7 @@ def _lm_objective_residuals(u_phys, args):
     white, _, _, scales = problem.profile(u, return_scales=True)
     sigma = problem.sample_sigma(u)
     # sqrt(x + tiny): smooth where the slope term vanishes (x ∝ slope², the derivative → 0)
-    q = [jnp.sqrt(jnp.maximum(2.0 * (jnp.log(sc) - jnp.log(sg)), 0.0) + 1e-12) * jnp.ones_like(sc)
-         for sc, sg in zip(scales, sigma)]
+    q = [jnp.sqrt(jnp.maximum(2.0 * (jnp.log(sc) - jnp.log(sg)), 0.0) + 1e-12) for sc, sg in zip(scales, sigma)]
     power = jnp.sqrt(problem.likelihood_power)
     return jnp.concatenate([power * w for w in white] + [power * x for x in q] + [problem.prior_residuals(u_phys)])
 
