@@ -18,7 +18,8 @@ variables variance; AR(1) noise), written without JAX:
 - **Log-density** (:meth:`NumpyProblem.log_density`): ``FitProblem.log_density`` term by
   term — the angle offset profiled analytically (one linear parameter: a closed-form weighted
   mean of the whitened residuals, marginalised under a flat prior), AR(1) Prais–Winsten
-  whitening, per-sample scales √(σ² + slope²·var τ̂), normal priors in u.
+  whitening, per-sample scales √(σ² + eiv_i) (the errors-in-variables variance torsionfit reads
+  from the data), normal priors in u.
   ``tests/test_scipy_pipeline_reference.py`` checks it equals torsionfit's to 1e-10 relative.
 - **MAP** (:func:`fit_map`): ``fit_map``'s algorithm with ``scipy.optimize.least_squares``
   (MINPACK Levenberg–Marquardt, ``x_scale="jac"``): the same starts (prior centre, then draws
@@ -43,6 +44,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from torsionfit.fit._denoise import denoise_torque
+from torsionfit.fit._torque_error import angle_variance_from_torque_error
 from torsionfit.fit._map import same_optimum
 from torsionfit.fit._prior import build_priors
 from torsionfit.fit._problem import AR1_MIN_SAMPLES, NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD, _hat_basis, _knot_indices
@@ -119,13 +121,9 @@ def _affine_floats(a, b, x0):
     return np.array(res)
 
 
-def _angle(mesh, k, gap, t_g, with_slope: bool):
-    """Elastic + gap angle of the mesh torque; with ``with_slope`` also d angle / d mesh torque."""
-    x = mesh / t_g
-    angle = mesh / k + 0.5 * gap * np.tanh(x)
-    if not with_slope:
-        return angle
-    return angle, 1.0 / k + 0.5 * gap / t_g / np.cosh(x) ** 2
+def _angle(mesh, k, gap, t_g):
+    """Elastic + gap angle of the mesh torque."""
+    return mesh / k + 0.5 * gap * np.tanh(mesh / t_g)
 
 
 @dataclass(eq=False)
@@ -136,7 +134,7 @@ class NumpyProblem:
 
     time_s: np.ndarray
     tau: np.ndarray  # denoised drive torque, N·m (N,)
-    torque_var: np.ndarray  # its variance per sample, N·m² (N,)
+    eiv_var: np.ndarray  # the angle variance its error causes per sample, rad² (N,), torsionfit's
     y: np.ndarray  # measured angle, rad (N,)
     basis: np.ndarray  # (N, K) hat functions of the latent torque correction
     floor: float  # encoder floor, rad
@@ -175,11 +173,8 @@ class NumpyProblem:
         return out
 
     # --- model -----------------------------------------------------------------------------
-    def predict(self, u, recurrence: str = "loop", with_slope: bool = False):
-        """Predicted angle without the offset, (W, dim) → (N, W) (samples × walkers); with
-        ``with_slope``, also its derivative with respect to a shift of the drive torque
-        (``FitProblem.prediction_and_torque_slope``: the friction state unchanged, so for this
-        model 1/K + (β/2τ_β)·sech²(τ_m/τ_β)).
+    def predict(self, u, recurrence: str = "loop"):
+        """Predicted angle without the offset, (W, dim) → (N, W) (samples × walkers).
 
         ``recurrence="loop"`` (what the benchmark compares): the Dahl recurrence as a tight
         loop over samples. ``"runs"``: its closed form per monotone run (:func:`_dahl_by_runs`),
@@ -197,9 +192,9 @@ class NumpyProblem:
             b = np.sign(d_tau) * (1.0 - a)
             z = _affine_rows(a, b, z0, np.empty_like(tau))
         mesh = tau - t_f * z
-        return _angle(mesh, k, gap, t_g, with_slope)
+        return _angle(mesh, k, gap, t_g)
 
-    def predict_one(self, u, with_slope: bool = False):
+    def predict_one(self, u):
         """The same for one parameter set (Python-float recurrence): (dim,) → (N,)."""
         u = np.asarray(u, float)
         with np.errstate(over="ignore"):
@@ -211,7 +206,7 @@ class NumpyProblem:
         b = np.sign(d_tau) * (1.0 - a)
         z = _affine_floats(a, b, z0)
         mesh = tau - t_f * z
-        return _angle(mesh, k, gap, t_g, with_slope)
+        return _angle(mesh, k, gap, t_g)
 
     # --- likelihood pieces -----------------------------------------------------------------
     def noise_values(self, u):
@@ -223,10 +218,9 @@ class NumpyProblem:
         rho = RHO_MAX / (1.0 + np.exp(-u[..., n + 1])) if self.ar1 else np.zeros_like(s)
         return sigma, rho
 
-    def _scales(self, slope, sigma):
-        """Per-sample innovation sd √(σ² + slope²·var τ̂); slope (N, W) or (N,)."""
-        extra = (slice(None),) + (None,) * (slope.ndim - 1)
-        return np.sqrt(sigma**2 + slope**2 * self.torque_var[extra])
+    def _scales(self, sigma, batch: bool):
+        """Per-sample innovation sd √(σ² + eiv_i): (N, W) for a batch of σ (W,), else (N,)."""
+        return np.sqrt(sigma**2 + (self.eiv_var[:, None] if batch else self.eiv_var))
 
     @staticmethod
     def _whiten(x, scale, rho):
@@ -242,13 +236,13 @@ class NumpyProblem:
         """Whitened residuals with the angle offset at its weighted-LS optimum, for u (dim,)
         or a batch (W, dim): (white (N[, W]), offset, log A, scales, ρ). A = Σ wx², the
         normal-equation "matrix" of the one linear parameter (torsionfit's 1e-10 trace
-        regularisation included). ``pred``: (prediction, torque slope) of u, when known."""
+        regularisation included). ``pred``: the prediction of u, when known."""
         batch = np.ndim(u) == 2
         if pred is None:
-            pred = self.predict(u, recurrence, with_slope=True) if batch else self.predict_one(u, with_slope=True)
-        f, slope = pred
+            pred = self.predict(u, recurrence) if batch else self.predict_one(u)
+        f = pred
         sigma, rho = self.noise_values(u)
-        scales = self._scales(slope, sigma)
+        scales = self._scales(sigma, batch)
         y = self.y[:, None] if batch else self.y
         we = self._whiten(y - f, scales, rho)
         # whitened design column of the offset (a column of ones)
@@ -293,24 +287,20 @@ class NumpyProblem:
 
     def residuals(self, u):
         """Raw residuals y − prediction (rad) with the offset at its optimum; u (dim,)."""
-        pred = self.predict_one(u, with_slope=True)
+        pred = self.predict_one(u)
         _, beta, _, _, _ = self.profile(u, pred)
-        return self.y - (pred[0] + beta)
+        return self.y - (pred + beta)
 
-    def lm_residuals(self, u_nl, u_noise, pred=None, with_scale: bool = True):
-        """fit_map's least-squares vector: whitened residuals, q_i = √(2 log(scale_i/σ)) (the
-        physics' share of −Σ log scale_i; ``with_scale=False``: without, the Gauss–Newton
-        part the Laplace covariance uses), then the prior of the non-linear block as
-        pseudo-residuals; u_nl (n_nonlinear,) or a batch (W, ·) → (M[, W])."""
+    def lm_residuals(self, u_nl, u_noise, pred=None):
+        """fit_map's least-squares vector: whitened residuals, then the prior of the non-linear
+        block as pseudo-residuals; u_nl (n_nonlinear,) or a batch (W, ·) → (M[, W])."""
         u_nl = np.asarray(u_nl, float)
         batch = u_nl.ndim == 2
         u = (np.concatenate([u_nl, np.broadcast_to(u_noise, (len(u_nl), len(u_noise)))], axis=1) if batch
              else np.concatenate([u_nl, u_noise]))
-        white, _, _, scales, _ = self.profile(u, pred)
-        sigma, _ = self.noise_values(u)
-        q = np.sqrt(np.maximum(2.0 * (np.log(scales) - np.log(sigma)), 0.0) + 1e-12)
+        white, _, _, _, _ = self.profile(u, pred)
         prior = (u_nl - self.prior_mean) / self.prior_sd
-        return np.concatenate([white] + ([q] if with_scale else []) + [prior.T if batch else prior], axis=0)
+        return np.concatenate([white, prior.T if batch else prior], axis=0)
 
 
 def build(campaign, *, latent_torque: bool = True, ar1: bool | None = None,
@@ -334,7 +324,7 @@ def build(campaign, *, latent_torque: bool = True, ar1: bool | None = None,
         basis = np.zeros((len(run), 0))
     y = np.asarray(run.angle_rad, float)
     return NumpyProblem(
-        time_s=np.asarray(run.time_s, float), tau=np.asarray(tau, float), torque_var=np.asarray(var, float),
+        time_s=np.asarray(run.time_s, float), tau=np.asarray(tau, float), eiv_var=angle_variance_from_torque_error(run.angle_rad, run.torque_Nm, tau, var),
         y=y, basis=np.ascontiguousarray(basis), floor=float(campaign.instrument.angle_floor_rad or 0.0),
         ar1=bool(len(run) >= AR1_MIN_SAMPLES) if ar1 is None else bool(ar1),
         prior_mean=np.asarray(prior_mean, float), prior_sd=np.asarray(prior_sd, float),
@@ -356,7 +346,7 @@ class MapResult:
     n_jev: int  # Jacobian evaluations (one batched model call each)
 
 
-def _fd_jacobian(problem: NumpyProblem, u_nl, u_noise, r0=None, central=False, with_scale=True):
+def _fd_jacobian(problem: NumpyProblem, u_nl, u_noise, r0=None, central=False):
     """Jacobian of ``lm_residuals`` w.r.t. u_nl by finite differences, every column in one
     walker-vectorised model call. Forward differences (MINPACK's step √ε·max(1, |u|)) for the
     optimiser; central differences (step ε^⅓·max(1, |u|)) for the Laplace covariance."""
@@ -365,7 +355,7 @@ def _fd_jacobian(problem: NumpyProblem, u_nl, u_noise, r0=None, central=False, w
     if central:
         h = np.finfo(float).eps ** (1 / 3) * scale
         pts = np.concatenate([u_nl + np.diag(h), u_nl - np.diag(h)])
-        r = problem.lm_residuals(pts, u_noise, with_scale=with_scale)
+        r = problem.lm_residuals(pts, u_noise)
         return (r[:, :n] - r[:, n:]) / (2 * h)
     h = np.sqrt(np.finfo(float).eps) * scale
     pts = u_nl + np.diag(h)
@@ -395,7 +385,7 @@ def laplace_covariance(problem: NumpyProblem, u) -> np.ndarray:
     """torsionfit's Laplace covariance: Gauss–Newton for the non-linear block, asymptotic
     variances for log s and logit ρ, the two blocks uncorrelated."""
     n = problem.n_nonlinear
-    jac = _fd_jacobian(problem, u[:n], u[n:], central=True, with_scale=False)
+    jac = _fd_jacobian(problem, u[:n], u[n:], central=True)
     cov = np.zeros((problem.dim, problem.dim))
     cov[:n, :n] = np.linalg.pinv(jac.T @ jac)
     sigma, rho = problem.noise_values(u)

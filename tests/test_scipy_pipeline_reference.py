@@ -78,14 +78,14 @@ def test_numpy_log_density_equals_torsionfit(sim, latent_torque, ar1):
     # the points are not in a flat region: the log-density varies by many units among them
     assert np.ptp(want[:3]) > 10
 
-    # the optimiser's residual vector (whitened residuals, the slope's scale residuals, prior
-    # pseudo-residuals), and without the scale residuals the Laplace covariance's
+    # the optimiser's residual vector (whitened residuals, prior pseudo-residuals) and the
+    # Laplace covariance's (the same without the likelihood's power, here 1)
     n = problem.n_nonlinear
-    for jax_residuals, with_scale in ((_lm_objective_residuals, True), (_lm_residuals, False)):
+    for jax_residuals in (_lm_objective_residuals, _lm_residuals):
         compiled = eqx.filter_jit(jax_residuals)
         for x in u[:2]:
             r_jax = np.asarray(compiled(jnp.asarray(x[:n]), (problem, jnp.asarray(x[n:]))))
-            r_np = npb.lm_residuals(x[:n], x[n:], with_scale=with_scale)
+            r_np = npb.lm_residuals(x[:n], x[n:])
             np.testing.assert_allclose(r_np, r_jax, rtol=0, atol=1e-8 * np.max(np.abs(r_jax)))
     r_batch = npb.lm_residuals(u[:2, :n], u[0, n:])
     np.testing.assert_allclose(r_batch[:, 0], npb.lm_residuals(u[0, :n], u[0, n:]), rtol=1e-12, atol=1e-12)

@@ -103,6 +103,14 @@ def split_monotone(smooth: np.ndarray, threshold: float) -> list[tuple[int, int,
     return [(a, b, 1 if smooth[b] > smooth[a] else -1) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
 
 
+#: the fit's ramps (torque denoiser, latent torque knots, errors-in-variables branches): a turning
+#: point needs a retreat of 2 % of the torque range (or 8 σ of noise). With 10 % the ±4 N·m play
+#: ramps of a measured ±40 N·m file (a 10 % retreat) were no ramps of their own: the denoiser
+#: smoothed across their reversals (corners rounded by 0.3 N·m, the torque's sd overstated 20×)
+#: and no latent knot sat at them
+FIT_REVERSAL_FRACTION = 0.02
+
+
 def monotone_segments(torque_Nm, *, reversal_fraction: float = 0.10, noise_sigmas: float = 8.0):
     """Smoothed torque and its monotone segments ``[(start, stop, direction), ...]`` (``stop``
     inclusive, consecutive segments share their turning point). A turning point needs a

@@ -77,7 +77,7 @@ def _views(problem: FitProblem, u):
     inputs = problem.corrected_inputs(u)
     comps = problem.model.components(values, inputs)
     preds = [c["total"] for c in comps]
-    scales = problem.sample_scales(u, problem.prediction_and_torque_slope(u[:problem.n_nonlinear])[1])
+    scales = problem.sample_scales(u)
     _, rho = problem.noise_values(u)
     return preds, [c["mesh_torque"] for c in comps], scales, rho, inputs
 

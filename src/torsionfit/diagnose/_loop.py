@@ -192,10 +192,10 @@ def noise_rmse_arcsec(ctx: FitContext) -> float:
     """RMS of the measurement noise over all samples (arcsec): per run the innovation sd from the
     residual's short-lag variogram, floored by the encoder, as a marginal sd σ/√(1 − ρ²).
 
-    The fit's errors-in-variables variance (torque noise × the model's slope) is left out: the
-    torque noise's effect on the angle is already in the residual the variogram reads, and near
-    a steep gap crossing the model's slope makes that variance large enough to put the "noise"
-    above the residual itself — which turned real findings into notes. For the same reason each
+    The fit's errors-in-variables variance (the torque noise carried along the loop's branch) is
+    left out: the torque noise's effect on the angle is already in the residual the variogram
+    reads, and near a steep gap crossing that variance can put the "noise" above the residual
+    itself — which turned real findings into notes. For the same reason each
     run's estimate is capped at its residual's mean square: the AR(1) extrapolation from the
     first two lags overshoots on a residual made of steps (stick-slip), and the noise is a part
     of the residual, never more."""

@@ -28,22 +28,14 @@ def _lm_residuals(u_phys, args):
 
 
 def _lm_objective_residuals(u_phys, args):
-    """What LM minimises: :func:`_lm_residuals` and, per hysteresis sample, q_i with ½ q_i² =
-    log(scale_i / σ_i) = ½ log(1 + (dθ̂/dτ̂)² var τ̂ / σ_i²), the part of the likelihood's
-    −Σ log scale_i that the physics moves through the errors-in-variables slope. Without it a
-    least-squares fit gains by steepening the loop (a larger scale shrinks every whitened
-    residual for free), its optimum is not the posterior's, and the noise passes between
-    solves pulled it back and forth: on measured loops LM reached its step limit and the log
-    density fell from pass to pass. Only the linear block's ½ log det A (a few dimensions)
-    is left out."""
+    """What LM minimises: :func:`_lm_residuals` with the whitened residuals times √η, η the
+    likelihood's power (1 but for a misfit-widened fit). Every sample's scale is fixed for a
+    given noise level (the errors-in-variables part is read from the data), so this is the
+    physics block of −log p up to the linear block's ½ log det A (a few dimensions)."""
     problem, u_noise = args
-    u = jnp.concatenate([u_phys, u_noise])
-    white, _, _, scales = problem.profile(u, return_scales=True)
-    sigma = problem.sample_sigma(u)
-    # sqrt(x + tiny): smooth where the slope term vanishes (x ∝ slope², the derivative → 0)
-    q = [jnp.sqrt(jnp.maximum(2.0 * (jnp.log(sc) - jnp.log(sg)), 0.0) + 1e-12) for sc, sg in zip(scales, sigma)]
+    white, _, _ = problem.profile(jnp.concatenate([u_phys, u_noise]))
     power = jnp.sqrt(problem.likelihood_power)
-    return jnp.concatenate([power * w for w in white] + [power * x for x in q] + [problem.prior_residuals(u_phys)])
+    return jnp.concatenate([power * w for w in white] + [problem.prior_residuals(u_phys)])
 
 
 @eqx.filter_jit

@@ -35,9 +35,10 @@ from .. import model as m
 from .._errors import InputError
 from ..io import Campaign, HysteresisRun
 from . import _transform as tr
-from .._segments import monotone_segments
+from .._segments import FIT_REVERSAL_FRACTION, monotone_segments
 from ._denoise import denoise_torque
 from ._prior import build_priors
+from ._torque_error import angle_variance_from_torque_error
 
 AR1_MIN_SAMPLES = 100  # the AR(1) default is on for runs at least this dense
 RHO_PRIOR_SD = 1.5  # logit-normal(0, 1.5) prior on each ρ_r / ρ_max
@@ -65,12 +66,9 @@ class NoiseOptions:
     # measured loops whose misfit grows with the load: with one level for a whole file the
     # ±4 N·m play ramps sit far below the ±40 N·m ramps' misfit and the fit ignores them.
     cycle_amplitude_noise: bool = False
-    # True: the denoised drive torque's error enters each hysteresis sample's variance through
-    # the loop's local slope, (dθ̂/dτ̂)²·var τ̂ (errors in variables, linearised). False: the
-    # angle noise alone (the latent torque knots stay). The linearisation has no ceiling: where
-    # a model loop is steep (a sharp gap crossing) it lets a sample's variance grow without
-    # bound, and on measured loops the posterior's optimum uses that to explain misfit as torque
-    # error instead of fitting it (docs/validation.md).
+    # True: the denoised drive torque's error enters each hysteresis sample's variance as the
+    # angle the *measured* loop branch moves across ±sd τ̂ (errors in variables, from the data:
+    # fit/_torque_error.py). False: the angle noise alone (the latent torque knots stay).
     torque_error_variance: bool = True
 
 
@@ -192,7 +190,9 @@ class FitProblem(eqx.Module):
     student_t_dof: float | None = eqx.field(static=True)
     inputs: list
     y: list
-    torque_var: list  # variance of the denoised drive torque per sample, N·m² (0 for TE runs)
+    # per sample, the angle variance the denoised drive torque's error puts into the measured
+    # angle, rad² (errors in variables, read from the data; 0 for TE runs): constant in u
+    eiv_var: list
     design: list
     knot_basis: list  # per run: (N, K_r) hat functions of the latent torque correction
     floors: jnp.ndarray
@@ -296,28 +296,6 @@ class FitProblem(eqx.Module):
         zero = self.linear_values(jnp.zeros(self.n_linear))
         return self.model.predict({**self.physics_values(u_nl), **zero}, self.corrected_inputs(u_nl))
 
-    def prediction_and_torque_slope(self, u_nl):
-        """(:meth:`nonlinear_prediction`, dθ̂/dτ̂ per run): the angle's derivative (rad/N·m) with
-        respect to a shift of the run's whole drive torque — the elastic, gap and creep response
-        at each sample, the friction state unchanged (a shift changes no torque increment),
-        which is how a smooth, ramp-long error of the denoised torque moves the angle. Exact
-        (one forward-mode pass), so it is smooth in the parameters: a finite difference of the
-        prediction over neighbouring samples, divided by their torque step, blew up where that
-        step nears zero (reversals) and made the log-density rough in the friction parameters
-        (NUTS then diverged at any step size on data/paper-small)."""
-        zero = self.linear_values(jnp.zeros(self.n_linear))
-        values = {**self.physics_values(u_nl), **zero}
-        inputs = self.corrected_inputs(u_nl)
-
-        def shifted(c):
-            moved = [m.HysteresisInput(i.time_s, i.torque_Nm + c, i.temperature_delta_K)
-                     if isinstance(i, m.HysteresisInput) else i for i in inputs]
-            return self.model.predict(values, moved)
-
-        preds, slopes = jax.jvp(shifted, (jnp.zeros((), dtype=jnp.result_type(float)),),
-                                (jnp.ones((), dtype=jnp.result_type(float)),))
-        return list(preds), list(slopes)
-
     @staticmethod
     def whiten(x, scale, rho):
         """AR(1) innovations of x divided by the per-sample scale (Prais–Winsten first
@@ -327,19 +305,11 @@ class FitProblem(eqx.Module):
         innov = jnp.concatenate([first, rest], axis=0)
         return innov / (scale[:, None] if jnp.ndim(scale) and innov.ndim == 2 else scale)
 
-    def sample_scales(self, u, slopes):
-        """Innovation sd per sample: √(σ_r² + (dθ̂/dτ̂)²·var τ̂), ``slopes`` from
-        :meth:`prediction_and_torque_slope`. The second term carries the error of the denoised
-        drive torque into the angle (errors in variables): it matters where the loop is steep,
-        e.g. while lost motion closes around zero torque."""
-        sigma = self.sample_sigma(u)
-        scales = []
-        for r, (slope, inp, var) in enumerate(zip(slopes, self.inputs, self.torque_var)):
-            if isinstance(inp, m.HysteresisInput):
-                scales.append(jnp.sqrt(sigma[r] ** 2 + slope**2 * var))
-            else:
-                scales.append(sigma[r] * jnp.ones_like(slope))
-        return scales
+    def sample_scales(self, u) -> list:
+        """Innovation sd per sample: √(σ_r² + eiv_i), eiv_i the angle variance the denoised drive
+        torque's error causes where the measured loop is steep (e.g. while lost motion closes
+        around zero torque); read from the data, so no parameter can widen it."""
+        return [jnp.sqrt(sg**2 + v) for sg, v in zip(self.sample_sigma(u), self.eiv_var)]
 
     def sample_sigma(self, u) -> list:
         """Noise sd per run (a scalar) or per sample (with a noise shape): √((s_r w_i)² + floor_r²)."""
@@ -351,8 +321,8 @@ class FitProblem(eqx.Module):
     def profile(self, u, return_scales: bool = False):
         """Solve the linear parameters for u: (whitened residuals per run, β, log det A)."""
         _, rho = self.noise_values(u)
-        preds, slopes = self.prediction_and_torque_slope(u[:self.n_nonlinear])
-        scales = self.sample_scales(u, slopes)
+        preds = self.nonlinear_prediction(u[:self.n_nonlinear])
+        scales = self.sample_scales(u)
         we = [self.whiten(y - f, scales[r], rho[r]) for r, (y, f) in enumerate(zip(self.y, preds))]
         if not self.n_linear:
             out = (we, jnp.zeros(0), jnp.asarray(0.0))
@@ -448,7 +418,7 @@ def _linear_jacobian(shell, u_phys, n_lin: int):
 
 def _knot_indices(torque_Nm) -> np.ndarray:
     """Turning points of a torque series and its two ends (sample indices)."""
-    _, segments = monotone_segments(torque_Nm)
+    _, segments = monotone_segments(torque_Nm, reversal_fraction=FIT_REVERSAL_FRACTION)
     return np.unique([0, len(torque_Nm) - 1] + [s[0] for s in segments] + [s[1] for s in segments])
 
 
@@ -486,6 +456,9 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
     ranges = np.array([max(float(np.ptp(np.asarray(v))), 1e-9) for v in y])
     design = _design_matrices(model, inputs, physics, linear, prior_mean, y)
     bases, knot_sd = [], []
+    eiv_var = [angle_variance_from_torque_error(run.angle_rad, run.torque_Nm, inp.torque_Nm, var)
+               if isinstance(run, HysteresisRun) and noise.torque_error_variance else np.zeros(len(run))
+               for run, inp, var in zip(campaign.runs, inputs, torque_var)]
     for run, inp, var in zip(campaign.runs, inputs, torque_var):
         if isinstance(run, HysteresisRun) and latent_torque:
             knots = _knot_indices(run.torque_Nm)
@@ -502,7 +475,7 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
         prior_sd = np.concatenate([prior_sd, *knot_sd])
     return FitProblem(
         model=model, physics=physics, linear=linear, ar1=ar1, student_t_dof=noise.student_t_dof,
-        inputs=inputs, y=y, torque_var=[jnp.asarray(v if noise.torque_error_variance else np.zeros_like(v)) for v in torque_var],
+        inputs=inputs, y=y, eiv_var=[jnp.asarray(v) for v in eiv_var],
         design=design, knot_basis=bases, floors=jnp.asarray(np.full(len(y), floor)),
         prior_mean=jnp.asarray(prior_mean), prior_sd=jnp.asarray(prior_sd), noise_prior_mean=jnp.asarray(np.log(1e-2 * ranges)),
         noise_shape=shape,

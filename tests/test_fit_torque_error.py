@@ -1,0 +1,63 @@
+"""The errors-in-variables variance read from the data (fit/_torque_error.py)."""
+
+from pathlib import Path
+
+import jax.numpy as jnp
+import numpy as np
+
+from torsionfit.bench import load_bench, simulate
+from torsionfit.fit import NoiseOptions, build_problem
+from torsionfit.fit._torque_error import angle_variance_from_torque_error
+from torsionfit.model import model_with_effects
+
+BENCHES = Path(__file__).parent / "benches"
+
+
+def _triangle(n_ramp: int = 200, peak: float = 10.0):
+    up = np.linspace(-peak, peak, n_ramp)
+    return np.concatenate([up, up[::-1][1:], up[1:]])
+
+
+def test_on_a_straight_branch_it_is_the_slope_times_the_torque_sd():
+    """θ = c·τ: the secant over τ̂ ± s is c·s wherever ±s stays inside the ramp."""
+    tau = _triangle()
+    compliance = 1e-4  # rad/(N·m)
+    sd = np.full(tau.size, 0.05)
+    var = angle_variance_from_torque_error(compliance * tau, tau, tau, sd**2)
+    inner = np.abs(tau) < 9.0
+    np.testing.assert_allclose(np.sqrt(var[inner]), compliance * 0.05, rtol=1e-6)
+
+
+def test_a_jump_is_bounded_by_the_angle_the_data_move():
+    """A gap crossed in one sample (a vertical step of the branch): a linearised slope would be
+    unbounded there, the secant is at most half the step."""
+    tau = _triangle()
+    gap = 1e-2
+    theta = 1e-4 * tau + 0.5 * gap * np.sign(tau)
+    var = angle_variance_from_torque_error(theta, tau, tau, np.full(tau.size, 0.2**2))
+    sd = np.sqrt(var)
+    near = np.abs(tau) < 0.2
+    assert sd.max() <= 0.5 * gap + 1e-4 * 0.2 + 1e-12
+    assert sd[near].max() > 0.25 * gap  # the step is seen where ±s straddles it
+    assert sd[np.abs(tau) > 1.0].max() < 1e-4  # far from it, the elastic slope's share only
+
+
+def test_no_torque_error_no_variance_and_short_runs_are_zero():
+    tau = _triangle()
+    assert not np.any(angle_variance_from_torque_error(1e-4 * tau, tau, tau, np.zeros(tau.size)))
+    assert not np.any(angle_variance_from_torque_error(tau[:5], tau[:5], tau[:5], np.ones(5)))
+
+
+def test_no_parameter_can_widen_it():
+    """The variance is a property of the data: two very different physics give the same scales
+    (a model-linearised variance let the fit widen its own error bars by steepening the loop)."""
+    campaign = simulate(load_bench(BENCHES / "stat_rv_white.toml"), seed=1).campaign
+    model = model_with_effects([r.kind for r in campaign.runs], {}, campaign.reducer.rated_torque_Nm,
+                               free_friction_start=True)
+    problem = build_problem(campaign, model, NoiseOptions())
+    noise = jnp.concatenate([jnp.full(problem.n_runs, -40.0), jnp.zeros(problem.n_ar1)])
+    u0 = jnp.concatenate([problem.prior_mean, noise])
+    u1 = jnp.concatenate([problem.prior_mean + 2.0 * problem.prior_sd, noise])
+    for a, b in zip(problem.sample_scales(u0), problem.sample_scales(u1)):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert max(float(jnp.max(v)) for v in problem.eiv_var) > 0.0
