@@ -16,9 +16,13 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 import torsionfit  # noqa: F401
 from torsionfit.io import load_campaign
+from torsionfit.fit._prior import cycle_friction_Nm
 from torsionfit.metrics import campaign_metrics
+from torsionfit.metrics._hysteresis import grouped_cycles
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "cycloidal-jv"
@@ -76,7 +80,13 @@ def file_metrics(folder: str, stem: str, workdir: Path) -> dict:
     manifest.write_text(
         MANIFEST.format(folder=folder, stem=stem, credit=CREDIT, file=f'"{path.as_posix()}"'), encoding="utf-8"
     )
-    (run,) = campaign_metrics(load_campaign(manifest))["runs"]
+    campaign = load_campaign(manifest)
+    (run,) = campaign_metrics(campaign)["runs"]
+    # friction read off the loops (half the width in torque at the mid angle) of the smallest
+    # and the largest cycles: equal where friction does not depend on the cycle's amplitude
+    (classes,) = grouped_cycles(campaign.hysteresis_runs)
+    run["friction_Nm"] = {name: (float(np.max(np.abs(c.torque_Nm))), cycle_friction_Nm(c))
+                          for name, c in (("smallest", classes.smallest), ("largest", classes.largest))}
     return run
 
 
@@ -180,8 +190,9 @@ def markdown(rows: list[dict]) -> str:
         "",
         "Per file (whole-file runs; play in °, compliances in °/N·m):",
         "",
-        "| file | play | compliance + | compliance − | stiffness_loading [N·m/arcmin] | amplitude classes |",
-        "| --- | ---: | ---: | ---: | ---: | --- |",
+        "| file | play | compliance + | compliance − | stiffness_loading [N·m/arcmin] | amplitude classes | "
+        "friction at the mid angle, smallest / largest cycles [N·m] |",
+        "| --- | ---: | ---: | ---: | ---: | --- | --- |",
     ]
     for r in rows:
         folder, state = r["key"]
@@ -192,13 +203,27 @@ def markdown(rows: list[dict]) -> str:
                 return _num(m[name]["value"] * scale, fmt) if name in m else "—"
 
             classes = re.search(r"amplitude classes in the run: ([^;)]*N·m)", m.get("play", {}).get("note", ""))
+            fr = run["friction_Nm"]
+            friction = (f"{fr['smallest'][1]:.2f} (±{fr['smallest'][0]:.0f}) / "
+                        f"{fr['largest'][1]:.2f} (±{fr['largest'][0]:.0f})")
             lines.append(
                 f"| {folder}/{state}-{pos} | {get('play', 1 / 60, '.3f')} | {get('compliance_loading_pos')} | "
-                f"{get('compliance_loading_neg')} | {get('stiffness_loading')} | {classes[1] if classes else '—'} |"
+                f"{get('compliance_loading_neg')} | {get('stiffness_loading')} | {classes[1] if classes else '—'} | "
+                f"{friction} |"
             )
     notes = [(r["configuration"], k, v) for r in rows for k, v in r["ours"]["notes"].items()]
     if notes:
         lines += ["", "Not computed:", ""] + [f"- {c}, {k}: {v}" for c, k, v in notes]
+    lines += [
+        "",
+        "Friction at the mid angle: half the loop's width in torque where each branch passes the angle "
+        "midway between the branches at zero torque (with a gap and a spring in series, friction is "
+        "what shifts the branches apart in torque), of the smallest and of the largest cycles, their "
+        "torque amplitude in brackets. Where the two agree, the friction the loop shows does not depend on "
+        "the cycle's amplitude. A level that grows with the instantaneous torque does not make them differ "
+        "once both cycles slide through; a broad density of break-away levels does (the small cycles slide "
+        "on the weak elements only), and so would a level that remembers the last peak load.",
+    ]
     missed = [r["configuration"] for r in rows if not (r["play_ok"] and r["stiffness_ok"])]
     lines += [
         "",

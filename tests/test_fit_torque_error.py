@@ -88,3 +88,4 @@ def test_play_ramps_of_a_large_file_are_ramps_of_their_own():
     assert np.all(peaks > 3.85), peaks  # every play-ramp corner kept (true peak 4.0)
     knots = _knot_indices(tau)
     assert np.sum((knots > 25) & (knots < 30 + 5 * 118)) >= 10, knots
+

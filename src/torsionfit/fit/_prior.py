@@ -35,6 +35,18 @@ def first_look_stiffness(campaign: Campaign) -> float:
     return campaign.reducer.rated_torque_Nm / math.radians(1.0)
 
 
+def cycle_friction_Nm(cycle) -> float:
+    """Half a cycle's width in torque at its mid angle (N·m): the torque where each branch
+    passes the angle midway between the branches at zero torque. With a gap and a spring in
+    series, friction is what shifts the branches apart in torque, so this reads the friction
+    level off the data (``cycle``: a class of ``metrics._hysteresis.grouped_cycles``)."""
+    j0 = int(np.argmin(np.abs(cycle.torque_Nm)))
+    mid = 0.5 * (cycle.upper_rad[j0] + cycle.lower_rad[j0])
+    # branches rise with torque
+    at = [float(np.interp(mid, np.maximum.accumulate(b), cycle.torque_Nm)) for b in (cycle.upper_rad, cycle.lower_rad)]
+    return 0.5 * (at[1] - at[0])
+
+
 def first_look_loop(campaign: Campaign) -> tuple[float, float] | None:
     """(play in rad, friction torque in N·m) read off the hysteresis runs' cycles, or None.
 
@@ -45,14 +57,10 @@ def first_look_loop(campaign: Campaign) -> tuple[float, float] | None:
     larger."""
     plays, widths = [], []
     for classes in grouped_cycles(campaign.hysteresis_runs):
-        small, large = classes.smallest, classes.largest
+        small = classes.smallest
         i0 = int(np.argmin(np.abs(small.torque_Nm)))
         plays.append(float(small.upper_rad[i0] - small.lower_rad[i0]))
-        j0 = int(np.argmin(np.abs(large.torque_Nm)))
-        mid = 0.5 * (large.upper_rad[j0] + large.lower_rad[j0])
-        # torque where each branch passes the mid angle (branches rise with torque)
-        at = [float(np.interp(mid, np.maximum.accumulate(b), large.torque_Nm)) for b in (large.upper_rad, large.lower_rad)]
-        widths.append(at[1] - at[0])
+        widths.append(2.0 * cycle_friction_Nm(classes.largest))
     if not plays or not all(np.isfinite(plays + widths)):
         return None
     play, width = float(np.median(plays)), float(np.median(widths))

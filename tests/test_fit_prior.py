@@ -1,0 +1,27 @@
+"""Priors from a first look at the data (fit/_prior.py)."""
+
+import numpy as np
+from test_fit_torque_error import _play_then_stiffness_ramps
+
+from torsionfit.fit._prior import cycle_friction_Nm
+from torsionfit.io import HysteresisRun
+from torsionfit.metrics._hysteresis import grouped_cycles
+
+
+def test_the_friction_read_off_a_loop_is_the_coulomb_level_at_every_amplitude():
+    """cycle_friction_Nm (the data-only friction of the measured-metrics table and of the fit's
+    prior): on a spring + gap + Coulomb-friction loop it reads the friction level F for the
+    ±4 N·m cycles and the ±40 N·m ones alike — the amplitude dependence it shows on the
+    preloaded measured units is the data's, not the reading's."""
+    tau = _play_then_stiffness_ramps(seed=1)
+    friction, k, gap, t_gap = 1.5, 600.0, 0.01, 0.3  # N·m, N·m/rad, rad, N·m
+    state = np.zeros(tau.size)  # Coulomb friction as a play operator on the torque
+    p = 0.0
+    for i, t in enumerate(tau):
+        p = min(max(p, t - friction), t + friction)
+        state[i] = p
+    angle = state / k + 0.5 * gap * np.tanh(state / t_gap)
+    run = HysteresisRun("loop", np.arange(tau.size) * 0.01, tau, angle)
+    (classes,) = grouped_cycles([run])
+    for cycle in (classes.smallest, classes.largest):
+        assert abs(cycle_friction_Nm(cycle) - friction) < 0.15, cycle_friction_Nm(cycle)
