@@ -399,10 +399,11 @@ def laplace_covariance(problem: NumpyProblem, u) -> np.ndarray:
     return cov
 
 
-def fit_map(problem: NumpyProblem, *, n_starts: int = 4, seed: int = 0, max_nfev: int = 300,
+def fit_map(problem: NumpyProblem, *, n_starts: int = 4, seed: int = 0, max_nfev: int = 1000,
             noise_passes: int = 3, tol: float = 1e-8, polish_nfev: int = 1000) -> MapResult:
     """fit_map with scipy's MINPACK Levenberg–Marquardt; the same starts, passes (later passes
-    shared by starts at one optimum) and Laplace covariance as torsionfit's."""
+    shared by starts at one optimum), budgets (``fit_campaign``'s: 1000 for every pass) and
+    Laplace covariance as torsionfit's."""
     rng = np.random.default_rng(seed)
     n = problem.n_nonlinear
     starts = [problem.prior_mean.copy()]

@@ -78,6 +78,7 @@ from torsionfit.sample._emcee import MOVES_DESCRIPTION  # noqa: E402
 from torsionfit.bench import load_bench, simulate  # noqa: E402
 from torsionfit.fit import NoiseOptions, build_problem, fit_map  # noqa: E402
 from torsionfit.model import model_with_effects  # noqa: E402
+from torsionfit.report import FitOptions  # noqa: E402
 import torsionfit.model._friction as tf_friction  # noqa: E402
 from torsionfit.sample import run_sampler  # noqa: E402
 
@@ -196,7 +197,8 @@ def run_torsionfit(campaign, clock: CompileClock, label: str):
     problem = build_problem(campaign, model, NoiseOptions())
     t1 = time.perf_counter()
     clock.phase = f"{label}:map"
-    map_result = fit_map(problem, names, n_starts=4, seed=SEED)
+    steps = FitOptions().map_steps  # fit_campaign's LM budget, as the NumPy side's
+    map_result = fit_map(problem, names, n_starts=4, seed=SEED, max_steps=steps, polish_steps=steps)
     t2, c2 = time.perf_counter(), time.process_time()
     clock.phase = f"{label}:sample"
     with patched(tf_emcee._LogProb, "__call__", timed_call), warnings.catch_warnings():

@@ -40,7 +40,7 @@ def fit_and_plot(campaign, effects, figure, source, run_index=0, seed=0):
                                free_friction_start=True)
     t0 = time.perf_counter()
     result = fit_map(build_problem(hyst, model), [r.name for r in hyst.runs], n_starts=3,
-                     polish_steps=FitOptions().map_polish_steps)
+                     max_steps=FitOptions().map_steps, polish_steps=FitOptions().map_steps)
     elapsed = time.perf_counter() - t0
     with torsionfit.float64():  # the model evaluated in the fit's precision
         comps = result.components()

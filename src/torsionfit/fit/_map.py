@@ -261,7 +261,8 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     ``max_steps`` caps each start's first pass, ``polish_steps`` the later passes, which run
     from near an optimum for the distinct optima only: on a long ridge (the compliance curve's
     scale and exponent of a measured loop) LM may need more there (``fit_campaign`` gives
-    :attr:`FitOptions.map_polish_steps`; diagnose's screening fits keep this default)."""
+    :attr:`FitOptions.map_steps` for both; diagnose's screening fits keep these defaults). Each
+    budget is part of a compiled program: equal budgets compile the solve once."""
     if noise_passes < 1:
         raise ValueError(f"noise_passes must be at least 1, got {noise_passes}")
     run_names = tuple(run_names or (f"run{i}" for i in range(problem.n_runs)))

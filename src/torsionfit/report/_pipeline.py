@@ -61,9 +61,10 @@ class FitOptions:
     # widen the posterior when the whitened residuals keep structure the model lacks
     # (long-run variance ratio k > 1 at the MAP: likelihood to the power 1/k, fit/_misfit.py)
     misfit_inflation: bool = True
-    # LM steps of the MAP's later noise passes (from near an optimum): a measured loop's long
-    # ridges need more than diagnose's screening fits get (fit_map's default)
-    map_polish_steps: int = 1000
+    # LM step budget of every MAP pass: a measured loop's long ridges need more than diagnose's
+    # screening fits get (fit_map's default, 300). One budget for the first and the later passes:
+    # the budget is part of the compiled solve, and two budgets compiled it twice
+    map_steps: int = 1000
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,7 +157,7 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
     log.info("MAP from %d starts, %d parameters (the first fit of a model shape compiles it first)",
              options.n_starts, problem.dim)
     map_result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed,
-                         polish_steps=options.map_polish_steps)
+                         max_steps=options.map_steps, polish_steps=options.map_steps)
     if options.misfit_inflation:
         problem, map_result = widen_for_misfit(problem, map_result)
     log.info("MAP %s; now the posterior (%s) and the metrics", "converged" if map_result.converged
