@@ -39,8 +39,9 @@ def fit_and_plot(campaign, effects, figure, source, run_index=0, seed=0):
     model = model_with_effects([r.kind for r in hyst.runs], effects, hyst.reducer.rated_torque_Nm,
                                free_friction_start=True)
     t0 = time.perf_counter()
+    steps = FitOptions().map_steps  # fit_campaign's LM budget
     result = fit_map(build_problem(hyst, model), [r.name for r in hyst.runs], n_starts=3,
-                     max_steps=FitOptions().map_steps, polish_steps=FitOptions().map_steps)
+                     max_steps=steps, polish_steps=steps)
     elapsed = time.perf_counter() - t0
     with torsionfit.float64():  # the model evaluated in the fit's precision
         comps = result.components()

@@ -375,7 +375,7 @@ def main(argv=None) -> int:
     parser.add_argument("--no-misfit-inflation", action="store_true",
                         help="the posterior as the likelihood gives it, not widened for structure the residuals keep (fit/_misfit.py)")
     parser.add_argument("--no-torque-error-variance", action="store_true",
-                        help="the angle noise alone, without the torque error through the loop's slope "
+                        help="the angle noise alone, without the torque error carried along the measured branch "
                              "(NoiseOptions.torque_error_variance)")
     parser.add_argument("--cycle-noise", action="store_true",
                         help="noise level scaled by the amplitude of each sample's torque cycle (NoiseOptions.cycle_amplitude_noise)")

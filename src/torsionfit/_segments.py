@@ -119,3 +119,9 @@ def monotone_segments(torque_Nm, *, reversal_fraction: float = 0.10, noise_sigma
     smooth, sigma = smooth_torque(tau, default_window(tau.size))
     threshold = max(reversal_fraction * float(np.ptp(smooth)), noise_sigmas * sigma, 1e-300)
     return smooth, split_monotone(smooth, threshold)
+
+
+def fit_ramps(torque_Nm) -> list[tuple[int, int, int]]:
+    """The fit's ramps of a torque series: :func:`monotone_segments` at
+    :data:`FIT_REVERSAL_FRACTION`."""
+    return monotone_segments(torque_Nm, reversal_fraction=FIT_REVERSAL_FRACTION)[1]

@@ -13,7 +13,7 @@ Smoothing is by sample index, not time, because benches quantise time (duplicate
 
 import numpy as np
 
-from .._segments import FIT_REVERSAL_FRACTION, monotone_segments
+from .._segments import fit_ramps
 
 
 def _windows(n: int, h: int):
@@ -93,7 +93,7 @@ def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_vari
     n = tau.size
     if n < 7:
         return (tau.copy(), np.zeros(n)) if return_variance else tau.copy()
-    _, segments = monotone_segments(tau, reversal_fraction=FIT_REVERSAL_FRACTION)
+    segments = fit_ramps(tau)
     out = tau.copy()
     var = np.zeros(n)
     ends = []  # per segment: (core start, core stop, width, first line, last line)

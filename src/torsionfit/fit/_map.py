@@ -20,11 +20,15 @@ from ._problem import NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD, FitProblem
 _RHO_CAP = RHO_MAX * (1.0 - 1e-3)
 
 
+def _weighted_residuals(u_phys, problem: FitProblem, u_noise, data_weight):
+    white, _, _ = problem.profile(jnp.concatenate([u_phys, u_noise]))
+    return jnp.concatenate([data_weight * w for w in white] + [problem.prior_residuals(u_phys)])
+
+
 def _lm_residuals(u_phys, args):
     """Whitened residuals and prior pseudo-residuals: the Gauss–Newton part of the posterior."""
     problem, u_noise = args
-    white, _, _ = problem.profile(jnp.concatenate([u_phys, u_noise]))
-    return jnp.concatenate(white + [problem.prior_residuals(u_phys)])
+    return _weighted_residuals(u_phys, problem, u_noise, 1.0)
 
 
 def _lm_objective_residuals(u_phys, args):
@@ -33,9 +37,7 @@ def _lm_objective_residuals(u_phys, args):
     given noise level (the errors-in-variables part is read from the data), so this is the
     physics block of −log p up to the linear block's ½ log det A (a few dimensions)."""
     problem, u_noise = args
-    white, _, _ = problem.profile(jnp.concatenate([u_phys, u_noise]))
-    power = jnp.sqrt(problem.likelihood_power)
-    return jnp.concatenate([power * w for w in white] + [problem.prior_residuals(u_phys)])
+    return _weighted_residuals(u_phys, problem, u_noise, jnp.sqrt(problem.likelihood_power))
 
 
 @eqx.filter_jit

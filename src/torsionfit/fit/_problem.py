@@ -35,7 +35,7 @@ from .. import model as m
 from .._errors import InputError
 from ..io import Campaign, HysteresisRun
 from . import _transform as tr
-from .._segments import FIT_REVERSAL_FRACTION, monotone_segments
+from .._segments import fit_ramps, monotone_segments
 from ._denoise import denoise_torque
 from ._prior import build_priors
 from ._torque_error import angle_variance_from_torque_error
@@ -418,7 +418,7 @@ def _linear_jacobian(shell, u_phys, n_lin: int):
 
 def _knot_indices(torque_Nm) -> np.ndarray:
     """Turning points of a torque series and its two ends (sample indices)."""
-    _, segments = monotone_segments(torque_Nm, reversal_fraction=FIT_REVERSAL_FRACTION)
+    segments = fit_ramps(torque_Nm)
     return np.unique([0, len(torque_Nm) - 1] + [s[0] for s in segments] + [s[1] for s in segments])
 
 
@@ -455,12 +455,12 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
     # noise above the floor: log-normal around 1 % of the run's angle range (wide)
     ranges = np.array([max(float(np.ptp(np.asarray(v))), 1e-9) for v in y])
     design = _design_matrices(model, inputs, physics, linear, prior_mean, y)
-    bases, knot_sd = [], []
-    eiv_var = [angle_variance_from_torque_error(run.angle_rad, run.torque_Nm, inp.torque_Nm, var)
-               if isinstance(run, HysteresisRun) and noise.torque_error_variance else np.zeros(len(run))
-               for run, inp, var in zip(campaign.runs, inputs, torque_var)]
+    bases, knot_sd, eiv_var = [], [], []
     for run, inp, var in zip(campaign.runs, inputs, torque_var):
-        if isinstance(run, HysteresisRun) and latent_torque:
+        hysteresis = isinstance(run, HysteresisRun)
+        eiv_var.append(angle_variance_from_torque_error(run.angle_rad, run.torque_Nm, inp.torque_Nm, var)
+                       if hysteresis and noise.torque_error_variance else np.zeros(len(run)))
+        if hysteresis and latent_torque:
             knots = _knot_indices(run.torque_Nm)
             bases.append(jnp.asarray(_hat_basis(len(run), knots)))
             knot_sd.append(np.sqrt(np.maximum(var[knots], 1e-12)))

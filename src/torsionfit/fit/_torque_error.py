@@ -19,7 +19,7 @@ every model fitted to the file (so their likelihoods compare), and constant in t
 
 import numpy as np
 
-from .._segments import FIT_REVERSAL_FRACTION, monotone_segments
+from .._segments import fit_ramps
 from ._denoise import gcv_half_width, local_linear
 
 
@@ -33,8 +33,7 @@ def angle_variance_from_torque_error(angle_rad, torque_Nm, denoised_Nm, torque_v
     out = np.zeros(theta.size)
     if theta.size < 7 or not np.any(sd > 0):
         return out
-    _, segments = monotone_segments(np.asarray(torque_Nm, float), reversal_fraction=FIT_REVERSAL_FRACTION)
-    for start, stop, direction in segments:
+    for start, stop, direction in fit_ramps(np.asarray(torque_Nm, float)):
         sl = slice(start, stop + 1)
         if stop - start < 3:
             continue
