@@ -67,6 +67,7 @@ ZOO = (
     _effect("torque_offset"),
     _friction("load_dependent_friction"),
     _friction("distributed_friction"),
+    _friction("gap_lag"),
     Entry("warm-up drift", "effects/base.toml, a(1 − e^(−t/T)) added to the readings", td.warm_up_case,
           ("thermal_drift",)),
     _effect("kinematic_error"),

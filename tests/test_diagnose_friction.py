@@ -1,5 +1,6 @@
 """Closing the loop on friction (DESIGN §1.1 "What real loops add", §3): SYNTHETIC campaigns
-with friction that grows with the load, or with several slip elements, undeclared.
+with friction that grows with the load, with several slip elements, or a damped gap crossing
+(the gap trails the torque in time), undeclared.
 
 Bench: ``tests/benches/friction/base.toml`` — two hysteresis loops (to 380 and to 190 N·m at
 4 N·m/s, 2 Hz: 1071 and 596 samples), each preceded by two play ramps to ±30 N·m, 1″ angle
@@ -48,7 +49,13 @@ def _distributed(rng):
             ("dahl_torque_Nm",))
 
 
-CASES = {"load_dependent_friction": _load_dependent, "distributed_friction": _distributed}
+def _gap_lag(rng):
+    # the gap (1′, crossed over ~10 N·m, ~2.5 s at 4 N·m/s) trails the mesh torque by 2–4 s: the
+    # crossing moves 8–16 N·m later along each branch, the loaded flanks not at all
+    return {"gap_lag": True}, {"gap_lag_time_s": rng.uniform(2.0, 4.0)}, ()
+
+
+CASES = {"load_dependent_friction": _load_dependent, "distributed_friction": _distributed, "gap_lag": _gap_lag}
 
 
 def friction_case(folder: Path, effect: str | None, seed: int) -> Case:

@@ -70,6 +70,31 @@ def test_nnls_recovers_synthetic_pi_plus_gap():
     assert np.all(m.weights >= 0)
 
 
+def test_gap_lag_matches_the_model_lag_and_the_fit_finds_it():
+    """SYNTHETIC: the reference's lag is the model's (``first_order_lag``), and a loop whose gap
+    columns see a lagged torque is fitted best at that lag, chosen on the fitted rows alone."""
+    import jax.numpy as jnp
+
+    from torsionfit.model import first_order_lag
+
+    t = np.linspace(0.0, 20.0, 4001)
+    torque = 20.0 * np.sin(2 * np.pi * t / 5.0) + 3.0 * np.sin(2 * np.pi * t / 1.3)
+    ours = pi.lag_torque(t, torque, 0.3)
+    np.testing.assert_allclose(ours, np.asarray(first_order_lag(jnp.asarray(t), jnp.asarray(torque), 0.3)), atol=1e-9)
+    np.testing.assert_array_equal(pi.lag_torque(t, torque, 0.0), torque)
+    truth = pi.PIReference(median_window=1, gap_lag_s=0.3)
+    fitted_rows = t < 15.0
+    X = truth.design(torque, fitted_rows, time_s=t)  # thresholds from the fitted rows, as the fit's
+    w = np.zeros(X.shape[1])
+    w[0], w[3], w[2 * truth.n_play + 1], w[-2] = 2.0, 1.0, 5.0, 1.0
+    angle = X @ w
+    fit, lag = pi.PIReference(median_window=1).fit_lagged(t, torque, angle, fitted_rows)
+    assert lag == pytest.approx(0.3)
+    assert np.sqrt(np.mean((fit.predict() - angle)[~fitted_rows] ** 2)) < 1e-6 * np.abs(angle).max()
+    with pytest.raises(ValueError, match="time_s"):
+        truth.design(torque)
+
+
 @pytest.mark.skipif(not _DATA.is_dir(), reason=f"measured data folder {_DATA} is absent (not part of the repository)")
 def test_measured_baseline_initial_pos1():
     """REAL measured data (JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0)."""

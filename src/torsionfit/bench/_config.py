@@ -23,6 +23,7 @@ EFFECTS = (
     "load_dependent_friction",
     "distributed_friction",
     "temperature_dependence",
+    "gap_lag",  # the gap crossing trails the mesh torque through a first-order lag
     "gap_preload",  # a gap held closed below a preload torque (split-pinwheel designs); not in the catalog
     "encoder_ripple",  # outside the catalog: a sub-division error periodic in the measured angle
 )

@@ -37,6 +37,7 @@ ACCEPTED: dict[str, tuple[str, ...]] = {
     **{k: ("Nm",) for k in ("friction_torque", "dahl_torque", "gap_torque", "gap_preload_torque", "t1", "t2", "torque_offset", "power_scale")},
     **{k: ("rad", "deg", "arcmin", "arcsec") for k in ("gap", "te_offset", "angle_offset")},
     "creep_time": ("s",),
+    "gap_lag_time": ("s",),
     "viscous_friction": ("Nm_s_per_rad", "Nm_per_rpm"),
     "speed_compliance_1": ("s_per_rad", "per_rpm"),
     "speed_compliance_2": ("s2_per_rad2", "per_rpm2"),

@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..fit import temperatures_resolving_friction
-from ..model import DahlFriction, MaxwellSlipFriction, TemperatureDependence as TemperatureTerm
+from ..model import DahlFriction, MaxwellSlipFriction, TemperatureDependence as TemperatureTerm, GapLag as GapLagTerm
 from ..model._drift import WARM_UP_FRACTIONS
 from ..model._effects import DEFAULT_FRICTION_ELEMENTS
 from ._context import FitContext
@@ -263,7 +263,7 @@ class TorqueOffset(Effect):
         return {**effects, self.name: True}
 
 
-# --- friction: score tests against the fitted model ------------------------------------------
+# --- friction and the gap: score tests against the fitted model ------------------------------------------
 @eqx.filter_jit
 def _directions(problem, u, alt, extra: dict):
     """At the fit ``u`` of ``problem``: the prediction per run, its Jacobian with respect to
@@ -296,8 +296,8 @@ def _span(x: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
     return uu[:, sv > rtol * sv[0]] * sv[sv > rtol * sv[0]]
 
 
-def _friction_score(ctx: FitContext, name: str, alt, extra: dict, columns, description: str, details=None) -> Evidence:
-    """Signature of a friction extension as a score test: ``columns(pred, alt_pred, alt_jac)``
+def _score_test(ctx: FitContext, name: str, alt, extra: dict, columns, description: str, details=None) -> Evidence:
+    """Signature of a hysteresis-run extension (friction, gap lag) as a score test: ``columns(pred, alt_pred, alt_jac)``
     gives per run the first-order directions of the extension (N, k); they are tested on the
     hysteresis runs' whitened residuals after projecting out the run's linear terms and the
     fitted model's own physics directions (what a refit of the present parameters would absorb)."""
@@ -347,7 +347,7 @@ class LoadDependentFriction(Effect):
         # carried at its last slip — which is exactly what the missing μ leaves in the residual.
         fr = ctx.map_result.problem.model.friction
         alt = _with_friction(ctx.map_result.problem.model, replace_friction(fr, load_dependent=True))
-        return _friction_score(
+        return _score_test(
             ctx, self.name, alt, {"friction_load_coefficient": 0.0},
             lambda pred, alt_pred, alt_jac: alt_jac["friction_load_coefficient"][:, None],
             "residual along the fitted model's derivative with respect to a load-dependent friction level μ|τ| "
@@ -376,13 +376,40 @@ class DistributedFriction(Effect):
         alt = _with_friction(problem.model, MaxwellSlipFriction(
             n_elements=DEFAULT_FRICTION_ELEMENTS, initial_state=fr.initial_state, load_dependent=fr.load_dependent))
         level = float(problem.physics_values(jnp.asarray(ctx.map_result.u))["friction_torque"])
-        return _friction_score(
+        return _score_test(
             ctx, self.name, alt, {"breakaway_spread": SIGNATURE_SPREAD, "friction_torque": level},
             lambda pred, alt_pred, alt_jac: np.stack(
                 [alt_pred - pred, alt_jac["breakaway_spread"], alt_jac["friction_torque"] * level], axis=1),
             f"residual along the change from one Dahl element to {DEFAULT_FRICTION_ELEMENTS} slip elements "
             f"(break-away spread {SIGNATURE_SPREAD}) and the slip model's derivatives in spread and level: "
             "rounded pre-sliding")
+
+    def extend(self, effects, evidence, ctx):
+        return {**effects, self.name: True}
+
+
+class GapLag(Effect):
+    name = "gap_lag"
+    signature_text = "gap crossed late: the fast twist change near zero torque trails the torque in time"
+    extension_text = "a first-order lag T_g of the torque the gap sees behind the mesh torque (damped crossing)"
+
+    def applicable(self, ctx):
+        return bool(ctx.hysteresis) and ctx.map_result.problem.model.gap_lag is None
+
+    def signature(self, ctx, alpha):
+        # The score of T_g at T_g → 0: the prediction's derivative with respect to the lag, the
+        # gap's response to the mesh-torque perturbation −T_g·dτ_m/dt, tested against everything
+        # a refit of the present parameters absorbs. Evaluated at a lag far below one sample
+        # step, where the lag is the identity to first order.
+        problem = ctx.map_result.problem
+        alt = eqx.tree_at(lambda mm: mm.gap_lag, problem.model, GapLagTerm(), is_leaf=lambda x: x is None)
+        steps = np.concatenate([np.diff(r.time_s) for r in ctx.hysteresis])
+        tiny = 1e-4 * float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1e-6
+        return _score_test(
+            ctx, self.name, alt, {"gap_lag_time": tiny},
+            lambda pred, alt_pred, alt_jac: alt_jac["gap_lag_time"][:, None],
+            "residual along the fitted model's response to a damped gap crossing (the gap at the mesh torque "
+            "lagged by T_g → 0: −T_g·dτ_m/dt through the gap): the gap is crossed late")
 
     def extend(self, effects, evidence, ctx):
         return {**effects, self.name: True}
@@ -443,4 +470,5 @@ CATALOG: tuple[Effect, ...] = (
     LoadDependentFriction(),
     DistributedFriction(),
     TemperatureDependence(),
+    GapLag(),
 )

@@ -97,6 +97,9 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "gap_preload_torque": (log(0.1 * rated), 1.5),
         "creep_stiffness": (log(5 * k0), 2.0),
         "creep_time": (log(0.1 * max(durations)), 2.0),
+        # a damped gap crossing takes a small share of a run (the fit is free to take the lag to
+        # zero, the undamped gap)
+        "gap_lag_time": (log(0.01 * max(durations)), 2.0),
         "viscous_friction": (log(0.01 * rated / v_max), 2.5),
         "speed_compliance_1": (0.0, 1.0 / v_max),
         "speed_compliance_2": (0.0, 1.0 / v_max**2),

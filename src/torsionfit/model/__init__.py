@@ -19,6 +19,7 @@ from ._compliance import (
 )
 from ._creep import Creep as Creep
 from ._effects import model_with_effects as model_with_effects
+from ._gap_lag import GapLag as GapLag
 from ._friction import (
     AbstractFriction as AbstractFriction,
     DahlFriction as DahlFriction,
@@ -33,6 +34,10 @@ from ._inputs import (
 )
 from ._kinematic import KinematicHarmonics as KinematicHarmonics
 from ._parameter import Parameter as Parameter
-from ._recurrence import affine_scan as affine_scan, resolve_scan_method as resolve_scan_method
+from ._recurrence import (
+    affine_scan as affine_scan,
+    first_order_lag as first_order_lag,
+    resolve_scan_method as resolve_scan_method,
+)
 from ._speed import SpeedDependence as SpeedDependence
 from ._temperature import TemperatureDependence as TemperatureDependence

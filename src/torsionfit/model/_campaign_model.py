@@ -5,7 +5,8 @@ Components, every one returned separately and summing to the total:
 - ``elastic``   C(τ): the spring's twist at the applied torque (single-valued in τ);
 - ``friction``  [C + θ_g](τ_m) − [C + θ_g](τ): what friction changes (the hysteresis);
 - ``geometric`` θ_g(τ): lost motion of the mesh at the applied torque;
-- ``creep``     θ_c: the rate-dependent part (off in the base model);
+- ``creep``     θ_c: the rate-dependent part (off in the base model): a creep element and what a
+  damped gap crossing changes;
 - ``kinematic`` θ_kin(φ): kinematic error (TE runs only);
 - ``drift``     slow per-run drift (off in the base model);
 - ``offset``    θ_0 per hysteresis run, TE_0 shared by all TE runs.
@@ -27,6 +28,7 @@ from ._parameter import Parameter
 from ._recurrence import ScanMethod
 from ._speed import SpeedDependence
 from ._temperature import TemperatureDependence
+from ._gap_lag import GapLag
 
 COMPONENTS = ("elastic", "friction", "geometric", "creep", "kinematic", "drift", "offset")
 
@@ -43,6 +45,8 @@ class CampaignModel(eqx.Module):
     friction: AbstractFriction = DahlFriction()
     backlash: AbstractBacklash = SmoothBacklash()
     creep: Creep | None = None
+    #: the gap crossing trails the mesh torque through a first-order lag (hysteresis runs)
+    gap_lag: GapLag | None = None
     kinematic: KinematicHarmonics | None = None
     speed: SpeedDependence | None = None
     #: compliance and friction level changing with the run's temperature (inputs carry ΔT)
@@ -76,6 +80,8 @@ class CampaignModel(eqx.Module):
         out = self.compliance.parameters() + self.friction.parameters() + self.backlash.parameters()
         if self.creep is not None:
             out += self.creep.parameters()
+        if self.gap_lag is not None and self.n_hysteresis:
+            out += self.gap_lag.parameters()
         if self.speed is not None and self.n_te:
             out += self.speed.parameters()
         if self.temperature is not None:
@@ -128,6 +134,7 @@ class CampaignModel(eqx.Module):
         elastic = factor * self.compliance(params, torque)
         geometric = self.backlash(params, torque)
         friction = factor * self.compliance(params, mesh) + self.backlash(params, mesh) - elastic - geometric
+        creep = creep + self._gap_delay(params, data, mesh)
         zeros = jnp.zeros_like(torque)
         return self._finish(
             dict(elastic=elastic, friction=friction, geometric=geometric, creep=creep,
@@ -142,7 +149,16 @@ class CampaignModel(eqx.Module):
         torque) — what a fit evaluates, one compliance and one backlash pass fewer."""
         _, mesh, _, creep, drift, offset = self._hysteresis_drive(params, data, run_index, hyst_index)
         _, factor = self._at_temperature(params, data)
-        return factor * self.compliance(params, mesh) + self.backlash(params, mesh) + creep + drift + offset
+        gap_torque = mesh if self.gap_lag is None else self.gap_lag.gap_torque(params, data.time_s, mesh, self.scan)
+        return factor * self.compliance(params, mesh) + self.backlash(params, gap_torque) + creep + drift + offset
+
+    def _gap_delay(self, params, data, mesh):
+        """What the damped gap crossing changes (rad): the gap at the lagged minus at the mesh
+        torque — rate-dependent, booked with creep."""
+        if self.gap_lag is None:
+            return jnp.zeros_like(mesh)
+        lagged = self.gap_lag.gap_torque(params, data.time_s, mesh, self.scan)
+        return self.backlash(params, lagged) - self.backlash(params, mesh)
 
     def te_components(self, params, data: TEInput, run_index: int):
         """Components (rad) of one TE run over its output angles, plus ``total`` and ``mesh_torque``."""

@@ -45,3 +45,23 @@ def affine_scan(a, b, x0, method: ScanMethod = "auto"):
 
     _, xs = jax.lax.scan(step, jnp.asarray(x0, dtype=b.dtype), (a, b))
     return xs
+
+
+def first_order_lag(time_s, x, lag_s, method: ScanMethod = "auto"):
+    """``x`` through a first-order lag ``T·dy/dt = x − y`` (``T = lag_s``), starting at rest
+    at the first sample; exact for an input linear between samples (first-order hold):
+
+    ``y[n] = e·y[n−1] + x[n] − e·x[n−1] − g·(x[n] − x[n−1])``,
+    ``e = exp(−Δt/T)``, ``g = (1 − e)·T/Δt`` (1 at Δt = 0, where y holds).
+
+    ``T → 0`` is the identity, with first-order effect ``−T·dx/dt``.
+    """
+    x = jnp.asarray(x)
+    dt = jnp.diff(jnp.asarray(time_s, dtype=x.dtype))
+    ratio = dt / lag_s
+    e = jnp.exp(-ratio)
+    # (1 − e)/ratio, well conditioned for ratio → 0 (duplicate stamps) and ratio → ∞ (T → 0)
+    safe = jnp.where(ratio > 0, ratio, 1.0)
+    g = jnp.where(ratio > 0, -jnp.expm1(-safe) / safe, 1.0)
+    b = x[1:] - e * x[:-1] - g * (x[1:] - x[:-1])
+    return jnp.concatenate([x[:1], affine_scan(e, b, x[0], method)])

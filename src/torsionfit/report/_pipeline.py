@@ -21,6 +21,7 @@ from .._chunks import map_chunks
 from .._errors import InputError
 from .._provenance import provenance
 from ..fit import NoiseOptions, build_problem, fit_map
+from ..fit._map import nested_start
 from ..fit._misfit import widen_for_misfit
 from ..io import Campaign, decimate
 from ..model import model_with_effects
@@ -150,14 +151,43 @@ def prepare_fit(campaign: Campaign, options: FitOptions = FitOptions()):
     return campaign, model, build_problem(campaign, model, options.noise)
 
 
+#: effects whose model contains the model without them as one parameter goes to zero (value:
+#: that parameter); their fit also starts from the optimum without them
+NESTED_AT_ZERO = {"gap_lag": "gap_lag_time"}
+
+
+def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
+    """Warm starts for a model with a :data:`NESTED_AT_ZERO` effect: the MAP without those
+    effects, their parameter three prior sds below its centre (there the model is the smaller
+    one), the rest at their prior centre. From the prior's starts alone such a fit can stop in
+    an optimum below the smaller model's (a damped gap crossing on measured loops: in sample
+    1174″ against 912″ without it), though it contains it."""
+    nested = [k for k in NESTED_AT_ZERO if options.effects.get(k)]
+    if not nested:
+        return None
+    inner_options = dataclasses.replace(options, effects={k: v for k, v in options.effects.items() if k not in nested})
+    inner_problem = build_problem(campaign, campaign_model(campaign, inner_options), options.noise)
+    names = [r.name for r in campaign.runs]
+    log.info("first the MAP without %s (its optimum is a start of the full fit)", ", ".join(nested))
+    inner = fit_map(inner_problem, names, n_starts=options.n_starts, seed=seed,
+                    max_steps=options.map_steps, polish_steps=options.map_steps)
+    start = nested_start(problem, names, inner.u, inner_problem.names(names))
+    full = problem.names(names)[:problem.n_nonlinear]
+    for k in nested:
+        j = full.index(NESTED_AT_ZERO[k])
+        start[j] = float(problem.prior_mean[j]) - 3.0 * float(problem.prior_sd[j])
+    return start[None, :]
+
+
 @in_float64
 def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: int = 0) -> CampaignFit:
     """Fit ``campaign``; InputError on data that cannot be fitted."""
     campaign, model, problem = prepare_fit(campaign, options)
+    warm = _nested_starts(campaign, options, problem, seed)
     log.info("MAP from %d starts, %d parameters (the first fit of a model shape compiles it first)",
              options.n_starts, problem.dim)
     map_result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed,
-                         max_steps=options.map_steps, polish_steps=options.map_steps)
+                         max_steps=options.map_steps, polish_steps=options.map_steps, warm_starts=warm)
     if options.misfit_inflation:
         problem, map_result = widen_for_misfit(problem, map_result)
     log.info("MAP %s; now the posterior (%s) and the metrics", "converged" if map_result.converged
