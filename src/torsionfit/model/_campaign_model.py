@@ -22,13 +22,13 @@ from ._compliance import AbstractCompliance, LinearCompliance
 from ._creep import Creep
 from ._drift import drift_parameters, run_drift
 from ._friction import AbstractFriction, DahlFriction
+from ._gap_lag import GapLag
 from ._inputs import HysteresisInput, TEInput
 from ._kinematic import KinematicHarmonics
 from ._parameter import Parameter
 from ._recurrence import ScanMethod
 from ._speed import SpeedDependence
 from ._temperature import TemperatureDependence
-from ._gap_lag import GapLag
 
 COMPONENTS = ("elastic", "friction", "geometric", "creep", "kinematic", "drift", "offset")
 
@@ -149,16 +149,19 @@ class CampaignModel(eqx.Module):
         torque) — what a fit evaluates, one compliance and one backlash pass fewer."""
         _, mesh, _, creep, drift, offset = self._hysteresis_drive(params, data, run_index, hyst_index)
         _, factor = self._at_temperature(params, data)
-        gap_torque = mesh if self.gap_lag is None else self.gap_lag.gap_torque(params, data.time_s, mesh, self.scan)
-        return factor * self.compliance(params, mesh) + self.backlash(params, gap_torque) + creep + drift + offset
+        gap = self.backlash(params, self._gap_torque(params, data, mesh))
+        return factor * self.compliance(params, mesh) + gap + creep + drift + offset
+
+    def _gap_torque(self, params, data, mesh):
+        """The torque the gap sees (N·m): the mesh torque, lagged when the crossing is damped."""
+        return mesh if self.gap_lag is None else self.gap_lag.gap_torque(params, data.time_s, mesh, self.scan)
 
     def _gap_delay(self, params, data, mesh):
         """What the damped gap crossing changes (rad): the gap at the lagged minus at the mesh
         torque — rate-dependent, booked with creep."""
         if self.gap_lag is None:
             return jnp.zeros_like(mesh)
-        lagged = self.gap_lag.gap_torque(params, data.time_s, mesh, self.scan)
-        return self.backlash(params, lagged) - self.backlash(params, mesh)
+        return self.backlash(params, self._gap_torque(params, data, mesh)) - self.backlash(params, mesh)
 
     def te_components(self, params, data: TEInput, run_index: int):
         """Components (rad) of one TE run over its output angles, plus ``total`` and ``mesh_torque``."""

@@ -157,11 +157,10 @@ NESTED_AT_ZERO = {"gap_lag": "gap_lag_time"}
 
 
 def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
-    """Warm starts for a model with a :data:`NESTED_AT_ZERO` effect: the MAP without those
-    effects, their parameter three prior sds below its centre (there the model is the smaller
-    one), the rest at their prior centre. From the prior's starts alone such a fit can stop in
-    an optimum below the smaller model's (a damped gap crossing on measured loops: in sample
-    1174″ against 912″ without it), though it contains it."""
+    """Warm start for a model with a :data:`NESTED_AT_ZERO` effect: the MAP without those
+    effects (:func:`~torsionfit.fit._map.nested_start`), their parameter three prior sds below its
+    centre, where the model is the smaller one. From the prior's starts alone such a fit stopped
+    below the smaller model's optimum on a measured loop, though it contains it."""
     nested = [k for k in NESTED_AT_ZERO if options.effects.get(k)]
     if not nested:
         return None
