@@ -15,13 +15,19 @@ $(BIN)/.installed: pyproject.toml
 run: $(BIN)/.installed
 	$(BIN)/python scripts/main_job.py -o $(OUT)
 
-# the threaded batch-sampler tests and the NUTS tests run in processes of their own first (they
-# compile many programs); tests/conftest.py drops compiled programs after every file, as a
-# long-lived xdist worker otherwise runs out of memory mappings (vm.max_map_count) inside XLA
+# the threaded batch-sampler tests and the NUTS tests run in processes of their own (they compile
+# many programs; tests/conftest.py drops compiled programs after every file, as a long-lived xdist
+# worker otherwise runs out of memory mappings (vm.max_map_count) inside XLA). Every test process
+# computes on one core (tests/conftest.py), so the NUTS file runs beside the two-worker pool
+# rather than before it: its log is printed when both are done, and either failing fails the target
 test: $(BIN)/.installed
 	$(BIN)/python -m pytest -q tests/test_batch_sampler.py
-	$(BIN)/python -m pytest -q tests/test_nuts.py
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=15 --ignore tests/test_batch_sampler.py --ignore tests/test_nuts.py
+	@log=$$(mktemp); \
+	$(BIN)/python -m pytest -q tests/test_nuts.py > $$log 2>&1 & nuts=$$!; \
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=15 --ignore tests/test_batch_sampler.py --ignore tests/test_nuts.py; \
+	pool=$$?; wait $$nuts; nuts_rc=$$?; \
+	echo "--- tests/test_nuts.py (run beside the pool):"; cat $$log; rm -f $$log; \
+	test $$pool -eq 0 && test $$nuts_rc -eq 0
 
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_hysteresis_scan.py
