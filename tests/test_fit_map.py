@@ -86,12 +86,35 @@ def test_a_nested_models_optimum_warm_starts_the_extension(problem):
     assert new and len(shared) == problem.n_nonlinear  # the extension adds parameters, keeps the others
     assert np.allclose(start[shared], [base.u[base_names.index(ext_names[j])] for j in shared])
     assert np.allclose(start[new], np.asarray(extended.prior_mean)[new])
+    n = extended.n_nonlinear
+    assert start.size == extended.dim  # the base fit's noise block comes along
+    assert np.allclose(start[n:], base.u[problem.n_nonlinear:])
     warm = fit_map(extended, names, n_starts=1, seed=0, warm_starts=start[None, :])
-    ld_start = float(_map.log_density(extended, jnp.concatenate([jnp.asarray(start), _map.iid_noise(extended)])))
+    ld_start = float(_map.log_density(extended, jnp.asarray(start)))
     assert warm.log_density >= ld_start
     assert len(warm.starts) == 2  # the warm start, then the prior centre
+
+
+def test_a_lag_whose_zero_is_the_smaller_model_starts_near_zero(problem):
+    """An extension whose new parameter's zero limit is the model without it (the damped gap's
+    lag) starts three prior sds below that prior's centre, where it is the smaller model: from
+    the prior centre a measured loop's refit drifted to a lag forty ramps long instead."""
+    campaign = simulate(load_bench(BENCH), seed=3).campaign
+    model = model_with_effects([r.kind for r in campaign.runs], {"gap_lag": True}, campaign.reducer.rated_torque_Nm,
+                               free_friction_start=True)
+    extended = build_problem(campaign, model)
+    runs = tuple(f"run{i}" for i in range(extended.n_runs))
+    base_u = np.asarray(problem.prior_mean) + 0.1  # any point of the smaller model
+    start = _map.nested_start(extended, runs, base_u, problem.names(runs)[:problem.n_nonlinear])
+    assert start.size == extended.n_nonlinear  # without the other fit's noise block: the non-linear block
+    names = extended.names(runs)[:extended.n_nonlinear]
+    j = names.index("gap_lag_time")
+    assert extended.vanishing_at_zero() == {j}
+    assert np.isclose(start[j], float(extended.prior_mean[j]) - 3.0 * float(extended.prior_sd[j]))
+    shared = [i for i, n in enumerate(names) if i != j]
+    assert np.allclose(start[shared], base_u[[problem.names(runs).index(names[i]) for i in shared]])
     with pytest.raises(ValueError, match="warm starts have"):
-        fit_map(extended, names, n_starts=1, warm_starts=np.zeros((1, 3)))
+        fit_map(extended, runs, n_starts=1, warm_starts=np.zeros((1, extended.n_nonlinear + 1)))
 
 
 def test_temperature_term_needs_every_runs_temperature():

@@ -189,24 +189,41 @@ def map_starts(problem: FitProblem, n_starts: int, seed: int) -> np.ndarray:
     return np.stack(starts)
 
 
-def _with_warm_starts(starts: np.ndarray, warm) -> np.ndarray:
-    if warm is None or not len(warm):
-        return starts
-    warm = np.atleast_2d(np.asarray(warm, float))
-    if warm.shape[1] != starts.shape[1]:
-        raise ValueError(f"warm starts have {warm.shape[1]} entries, the problem's non-linear block {starts.shape[1]}")
-    return np.concatenate([warm, starts])
+def _with_warm_starts(problem: FitProblem, starts: np.ndarray, warm) -> list:
+    """(u_phys, u_noise or None) per start, the warm ones first: a warm start of length
+    ``problem.dim`` brings its own noise block, one of length ``n_nonlinear`` starts from iid
+    noise as the prior's starts do."""
+    out = []
+    for w in ([] if warm is None else np.atleast_2d(np.asarray(warm, float))):
+        if w.size not in (problem.n_nonlinear, problem.dim):
+            raise ValueError(f"warm starts have {w.size} entries, the problem's non-linear block {problem.n_nonlinear} "
+                             f"(or all of u, {problem.dim})")
+        out.append((w[:problem.n_nonlinear], w[problem.n_nonlinear:] if w.size == problem.dim else None))
+    return out + [(start, None) for start in starts]
 
 
 def nested_start(problem: FitProblem, run_names, u_from, names_from) -> np.ndarray:
-    """A starting point for ``problem`` from another fit of the same runs: every non-linear
-    entry whose name the other fit has takes its value there, the rest their prior centre (for a
-    model that extends the other one: its optimum, with the new parameters at their priors)."""
-    start = np.asarray(problem.prior_mean, float).copy()
+    """A starting point for ``problem`` from another fit of the same runs: every entry whose
+    name the other fit has takes its value there, the rest their prior centre (for a model that
+    extends the other one: its optimum, with the new parameters at their priors) — except a new
+    parameter the smaller model is the zero limit of
+    (:attr:`~torsionfit.model.Parameter.vanishes_at_zero`): three prior sds below its centre,
+    where the extension is the smaller model. The non-linear block; the whole of u (its noise
+    levels and AR(1) coefficients too) when the other fit names them all, so that the start's
+    first pass weighs the residuals as the other fit's optimum did (from iid noise the first
+    pass moved a measured loop's extension away from the optimum it contains, to a fit 61 nats
+    lower)."""
+    names = problem.names(run_names)
     index = {name: i for i, name in enumerate(names_from)}
-    for j, name in enumerate(problem.names(run_names)[:problem.n_nonlinear]):
+    full = all(name in index for name in names[problem.n_nonlinear:])
+    start = np.concatenate([np.asarray(problem.prior_mean, float), np.zeros(problem.dim - problem.n_nonlinear)]) if full \
+        else np.asarray(problem.prior_mean, float).copy()
+    at_zero = problem.vanishing_at_zero()
+    for j, name in enumerate(names[:start.size]):
         if name in index:
             start[j] = float(u_from[index[name]])
+        elif j in at_zero:
+            start[j] = float(problem.prior_mean[j]) - 3.0 * float(problem.prior_sd[j])
     return start
 
 
@@ -259,7 +276,8 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     between passes the noise level and AR(1) coefficient are re-estimated in closed form.
     Starts whose first pass ends at the same optimum (:data:`SAME_OPTIMUM_RTOL`) share the
     later passes: they would repeat the same steps from the same point. ``warm_starts``:
-    (k, n_nonlinear) further starting points tried first (e.g. a nested model's optimum).
+    (k, n_nonlinear) further starting points tried first (e.g. a nested model's optimum), or
+    (k, dim) with their noise block, which their first pass then uses instead of iid noise.
     ``max_steps`` caps each start's first pass, ``polish_steps`` the later passes, which run
     from near an optimum for the distinct optima only: on a long ridge (the compliance curve's
     scale and exponent of a measured loop) LM may need more there (``fit_campaign`` gives
@@ -270,8 +288,8 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     run_names = tuple(run_names or (f"run{i}" for i in range(problem.n_runs)))
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
     iid = iid_noise(problem)
-    firsts = [_solve_pass(problem, jnp.asarray(start), iid, solver, max_steps)
-              for start in _with_warm_starts(map_starts(problem, n_starts, seed), warm_starts)]
+    firsts = [_solve_pass(problem, jnp.asarray(start), iid if noise is None else jnp.asarray(noise), solver, max_steps)
+              for start, noise in _with_warm_starts(problem, map_starts(problem, n_starts, seed), warm_starts)]
     rep = same_optimum([f[0] for f in firsts])
     finals = {}
     for j in sorted(set(rep)):

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from .._segments import fit_ramps
 from ..io import Campaign, HysteresisRun
 from ..metrics._hysteresis import grouped_cycles
 
@@ -69,6 +70,14 @@ def first_look_loop(campaign: Campaign) -> tuple[float, float] | None:
     return play, 0.5 * width
 
 
+def first_look_ramp_time_s(campaign: Campaign) -> float | None:
+    """Median duration (s) of the hysteresis runs' monotone torque ramps (between reversals,
+    as the fit splits them), or None without hysteresis runs."""
+    durations = [float(r.time_s[b] - r.time_s[a]) for r in campaign.hysteresis_runs for a, b, _ in fit_ramps(r.torque_Nm)]
+    durations = [d for d in durations if d > 0]
+    return float(np.median(durations)) if durations else None
+
+
 def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float]]:
     """(mean_u, sd_u) for each non-linear model parameter. Friction level and gap are centred
     on what the loops' cycles allow (:func:`first_look_loop`) when the campaign has them: a
@@ -97,9 +106,12 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "gap_preload_torque": (log(0.1 * rated), 1.5),
         "creep_stiffness": (log(5 * k0), 2.0),
         "creep_time": (log(0.1 * max(durations)), 2.0),
-        # a damped gap crossing takes a small share of a run (the fit is free to take the lag to
-        # zero, the undamped gap)
-        "gap_lag_time": (log(0.01 * max(durations)), 2.0),
+        # a damped gap crossing ends well within a ramp (else the gap never finishes crossing
+        # and the play would not show): centred on a tenth of the median ramp, not on the run's
+        # length (under that prior a measured fit took a lag 40 ramps long: a gap that stays
+        # put). Wide, so that three sds down — a nested fit's start — the lag is negligible: the
+        # fit is free to take it to zero, the undamped gap
+        "gap_lag_time": (log(0.1 * (first_look_ramp_time_s(campaign) or max(durations))), 2.0),
         "viscous_friction": (log(0.01 * rated / v_max), 2.5),
         "speed_compliance_1": (0.0, 1.0 / v_max),
         "speed_compliance_2": (0.0, 1.0 / v_max**2),

@@ -248,6 +248,16 @@ class FitProblem(eqx.Module):
         out += [f"ar1[{r}]" for r, a in zip(run_names, self.ar1) if a]
         return out
 
+    def vanishing_at_zero(self) -> set[int]:
+        """Indices in u of the model parameters whose zero limit is the model without their
+        effect (:attr:`~torsionfit.model.Parameter.vanishes_at_zero`)."""
+        out, i = set(), 0
+        for p in self.physics:
+            if p.vanishes_at_zero:
+                out |= set(range(i, i + p.size))
+            i += p.size
+        return out
+
     def physics_values(self, u_phys) -> dict:
         """Constrained model parameters from the first ``n_model`` entries of u."""
         out, i = {}, 0

@@ -20,7 +20,8 @@ class GapLag(eqx.Module):
     sample for a torque linear between samples; ``T_g → 0`` is the undamped gap)."""
 
     def parameters(self):
-        return (Parameter("gap_lag_time", "positive", "s", "time constant T_g of the damped gap crossing"),)
+        return (Parameter("gap_lag_time", "positive", "s", "time constant T_g of the damped gap crossing",
+                          vanishes_at_zero=True),)
 
     def gap_torque(self, params, time_s, mesh_torque_Nm, method: ScanMethod = "auto"):
         """Torque (N·m) at which the gap is evaluated, per sample."""

@@ -15,3 +15,6 @@ class Parameter:
     description: str
     size: int = 1  # > 1 for per-run or per-order vectors
     linear: bool = False  # enters the prediction linearly (offsets, harmonics, drift)
+    # the model without the effect is this parameter's limit at zero (a lag, not a level whose
+    # zero changes the shape): a fit extending the smaller model starts it near zero, there
+    vanishes_at_zero: bool = False

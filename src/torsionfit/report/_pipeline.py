@@ -152,15 +152,16 @@ def prepare_fit(campaign: Campaign, options: FitOptions = FitOptions()):
 
 
 #: effects whose model contains the model without them as one parameter goes to zero (value:
-#: that parameter); their fit also starts from the optimum without them
+#: that parameter, :attr:`~torsionfit.model.Parameter.vanishes_at_zero`); their fit also starts
+#: from the optimum without them
 NESTED_AT_ZERO = {"gap_lag": "gap_lag_time"}
 
 
 def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
     """Warm start for a model with a :data:`NESTED_AT_ZERO` effect: the MAP without those
-    effects (:func:`~torsionfit.fit._map.nested_start`), their parameter three prior sds below its
-    centre, where the model is the smaller one. From the prior's starts alone such a fit stopped
-    below the smaller model's optimum on a measured loop, though it contains it."""
+    effects, their parameter three prior sds below its centre, where the model is the smaller
+    one (:func:`~torsionfit.fit._map.nested_start`). From the prior's starts alone such a fit
+    stopped below the smaller model's optimum on a measured loop, though it contains it."""
     nested = [k for k in NESTED_AT_ZERO if options.effects.get(k)]
     if not nested:
         return None
@@ -170,12 +171,7 @@ def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
     log.info("first the MAP without %s (its optimum is a start of the full fit)", ", ".join(nested))
     inner = fit_map(inner_problem, names, n_starts=options.n_starts, seed=seed,
                     max_steps=options.map_steps, polish_steps=options.map_steps)
-    start = nested_start(problem, names, inner.u, inner_problem.names(names))
-    full = problem.names(names)[:problem.n_nonlinear]
-    for k in nested:
-        j = full.index(NESTED_AT_ZERO[k])
-        start[j] = float(problem.prior_mean[j]) - 3.0 * float(problem.prior_sd[j])
-    return start[None, :]
+    return nested_start(problem, names, inner.u, inner_problem.names(names))[None, :]
 
 
 @in_float64
