@@ -76,3 +76,31 @@ def test_structure_the_model_lacks_widens_it(tmp_path):
     problem, result = _base_fit(path, seed=3)
     # the AR(1) coefficient absorbs part of it (ρ rises): the ratio stays well above the white one
     assert misfit_inflation(problem, result.u) > 2.0
+
+
+def test_a_slow_misfit_drives_the_ar1_coefficient_to_its_bound_and_is_named():
+    """A smooth, ramp-long structure the model lacks (here a slow sinusoid of 20″ against ~1″ of
+    noise, added to the readings) drives a hysteresis run's AR(1) coefficient to its bound:
+    ``misfit_correlated_runs`` names such runs (fit.json's ``ar1_misfit_runs`` and
+    ``noise_note``); a model that holds has none."""
+    import dataclasses
+
+    from torsionfit.fit._misfit import MISFIT_RHO, misfit_correlated_runs
+    from torsionfit.io import HysteresisRun
+    from torsionfit.report._pipeline import noise_note
+
+    campaign = simulate(load_bench(BENCH), seed=3).campaign
+    model = model_with_effects([r.kind for r in campaign.runs], {}, campaign.reducer.rated_torque_Nm,
+                               free_friction_start=True)
+    clean = build_problem(campaign, model)
+    assert misfit_correlated_runs(clean, fit_map(clean, n_starts=1, seed=0).u) == {}
+    arcsec = np.pi / 180 / 3600
+    runs = tuple(dataclasses.replace(r, angle_rad=r.angle_rad + 20 * arcsec * np.sin(5 * np.pi * (r.time_s - r.time_s[0]) / np.ptp(r.time_s)))
+                 if isinstance(r, HysteresisRun) else r for r in campaign.runs)
+    problem = build_problem(dataclasses.replace(campaign, runs=runs), model)
+    result = fit_map(problem, n_starts=1, seed=0)
+    near = misfit_correlated_runs(problem, result.u)
+    hysteresis = [i for i, r in enumerate(runs) if isinstance(r, HysteresisRun)]
+    assert sorted(near) == hysteresis and all(MISFIT_RHO <= rho <= 0.995 for rho in near.values()), near
+    note = noise_note({"hyst": near[hysteresis[0]]})
+    assert "hyst (ρ 0.99" in note and "--ar1 off" in note

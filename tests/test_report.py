@@ -161,6 +161,9 @@ def test_fit_command_laplace(tmp_path, noisy_bench, capsys):
     assert "stiffness_rated" in out and "SYNTHETIC" in out
     doc = json.loads((tmp_path / "fit" / "fit.json").read_text())
     assert doc["diagnostics"]["sampler"] == "laplace"
+    # the model holds on its own bench: no AR(1) coefficient near the bound, no noise note
+    assert doc["diagnostics"]["ar1_misfit_runs"] == {} and "noise_note" not in doc["diagnostics"]
+    assert "\nnoise: " not in out
     figures = {p.name for p in (tmp_path / "fit" / "figures").iterdir()}
     assert {"loop-hyst-5.png", "components-hyst-5.png", "te-vs-angle.png", "kd-vs-speed.png", "pairs.png"} <= figures
 

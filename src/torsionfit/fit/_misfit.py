@@ -87,3 +87,18 @@ def widened(problem, map_result, factor: float):
 def widen_for_misfit(problem, map_result):
     """:func:`widened` by this fit's :func:`misfit_inflation` at its MAP: (problem, map result)."""
     return widened(problem, map_result, misfit_inflation(problem, map_result.u))
+
+
+#: an AR(1) coefficient of a hysteresis run at or above this (its bound is 0.995) is a correlation
+#: over ≳ 50 samples: rather the model's smooth misfit than a bench's noise. With it the
+#: likelihood scores mostly the residuals' increments, and the fit can follow a loop's shape
+#: while its level is off — on measured cycloidal loops iid noise (with the widening above)
+#: predicted held-out ramps better on 14 of 21 files (scripts/measured_validation.py --ar1)
+MISFIT_RHO = 0.98
+
+
+def misfit_correlated_runs(problem, u) -> dict[int, float]:
+    """{run index: ρ} of the AR(1) hysteresis runs whose coefficient at ``u`` is ≥ :data:`MISFIT_RHO`."""
+    _, rho = problem.noise_values(jnp.asarray(u))
+    return {r: float(rho[r]) for r, kind in enumerate(problem.model.run_kinds)
+            if kind == "hysteresis" and problem.ar1[r] and float(rho[r]) >= MISFIT_RHO}

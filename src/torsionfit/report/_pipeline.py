@@ -22,7 +22,7 @@ from .._errors import InputError
 from .._provenance import provenance
 from ..fit import NoiseOptions, build_problem, fit_map
 from ..fit._map import nested_start
-from ..fit._misfit import widen_for_misfit
+from ..fit._misfit import MISFIT_RHO, misfit_correlated_runs, widen_for_misfit
 from ..io import Campaign, decimate
 from ..model import model_with_effects
 from ..units import ANGLE_UNITS
@@ -387,6 +387,10 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     # 1: the posterior as the likelihood gives it; k > 1: widened for misfit (fit/_misfit.py)
     diagnostics["misfit_inflation"] = float(1.0 / problem.likelihood_power)
     diagnostics["map_message"] = map_result.message
+    near_bound = {names[r]: rho for r, rho in misfit_correlated_runs(problem, map_result.u).items()}
+    diagnostics["ar1_misfit_runs"] = near_bound
+    if near_bound:
+        diagnostics["noise_note"] = noise_note(near_bound)
 
     derived = derived_metrics_for(campaign, model, options.lost_motion_pct)
     linear = derived.reads_linear()
@@ -485,6 +489,14 @@ def _runs_json(campaign, temperature_term: bool) -> dict:
             "reference_temperature_C": campaign.reference_temperature_C if temperature_term else None}
 
 
+def noise_note(near_bound: dict) -> str:
+    """What an AR(1) coefficient near its bound on hysteresis runs means, and what to try."""
+    runs = ", ".join(f"{k} (ρ {v:.3f})" for k, v in near_bound.items())
+    return (f"AR(1) coefficient ≥ {MISFIT_RHO} on {runs}: a correlation that long is rather the model's misfit "
+            "than the bench's noise, and the fit then follows the loop's increments more than its level; "
+            "compare with --ar1 off (iid noise, the posterior widened for misfit), the setting validated on measured loops")
+
+
 def summary_table(doc: dict) -> str:
     """One screen: the headline metrics with 95 % HDIs, the diagnostics, RMSE per run."""
     lines = [f"{doc['reducer']['name']}  ({doc['label']})" if doc.get("label") else doc["reducer"]["name"]]
@@ -500,6 +512,8 @@ def summary_table(doc: dict) -> str:
     lines.append(f"sampler {d['sampler']}: {conv}; R-hat max {rhat}, ESS min {ess}{extra}")
     if d.get("sampler_choice_reason"):
         lines.append(f"sampler choice: {d['sampler_choice_reason']}")
+    if d.get("noise_note"):
+        lines.append(f"noise: {d['noise_note']}")
     lines.append("RMSE: " + ", ".join(f"{k} {v['value']:.3g}″" for k, v in doc["rmse"].items()))
     return "\n".join(lines)
 
