@@ -357,9 +357,10 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
     if phys:
         lines += ["", f"Against the physical PI reference (weights ≥ 0): held-out RMSE at or below it on "
                   f"{int(np.sum(np.array(phys) <= 1))} of {len(phys)} loops (median ratio {np.median(phys):.2f}, worst {max(phys):.2f})."]
-    lagged = [r["rmse_held_out_arcsec"] / r["reference"]["lagged_oos_rest"] for r in rows if "lagged_oos_rest" in r["reference"]]
-    if lagged:
-        lags = [r["reference"]["lag_s"] for r in rows if "lagged_oos_rest" in r["reference"]]
+    with_lag = [r for r in rows if "lagged_oos_rest" in r["reference"]]
+    if with_lag:
+        lagged = [r["rmse_held_out_arcsec"] / r["reference"]["lagged_oos_rest"] for r in with_lag]
+        lags = [r["reference"]["lag_s"] for r in with_lag]
         lines += ["", f"Against the PI reference with a gap lag (lag {min(lags):.1f}–{max(lags):.1f} s): held-out RMSE at or below it on "
                   f"{int(np.sum(np.array(lagged) <= 1))} of {len(lagged)} loops (≤ 0.8× on {int(np.sum(np.array(lagged) <= 0.8))}; "
                   f"median ratio {np.median(lagged):.2f}, worst {max(lagged):.2f})."]

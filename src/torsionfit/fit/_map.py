@@ -216,8 +216,8 @@ def nested_start(problem: FitProblem, run_names, u_from, names_from) -> np.ndarr
     names = problem.names(run_names)
     index = {name: i for i, name in enumerate(names_from)}
     full = all(name in index for name in names[problem.n_nonlinear:])
-    start = np.concatenate([np.asarray(problem.prior_mean, float), np.zeros(problem.dim - problem.n_nonlinear)]) if full \
-        else np.asarray(problem.prior_mean, float).copy()
+    start = np.zeros(problem.dim if full else problem.n_nonlinear)
+    start[:problem.n_nonlinear] = np.asarray(problem.prior_mean, float)
     at_zero = problem.vanishing_at_zero()
     for j, name in enumerate(names[:start.size]):
         if name in index:

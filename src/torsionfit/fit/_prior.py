@@ -106,12 +106,6 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "gap_preload_torque": (log(0.1 * rated), 1.5),
         "creep_stiffness": (log(5 * k0), 2.0),
         "creep_time": (log(0.1 * max(durations)), 2.0),
-        # a damped gap crossing ends well within a ramp (else the gap never finishes crossing
-        # and the play would not show): centred on a tenth of the median ramp, not on the run's
-        # length (under that prior a measured fit took a lag 40 ramps long: a gap that stays
-        # put). Wide, so that three sds down — a nested fit's start — the lag is negligible: the
-        # fit is free to take it to zero, the undamped gap
-        "gap_lag_time": (log(0.1 * (first_look_ramp_time_s(campaign) or max(durations))), 2.0),
         "viscous_friction": (log(0.01 * rated / v_max), 2.5),
         "speed_compliance_1": (0.0, 1.0 / v_max),
         "speed_compliance_2": (0.0, 1.0 / v_max**2),
@@ -122,6 +116,13 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "temperature_friction": (0.0, 0.03),
         "friction_start": (0.0, 1.0),  # tanh-normal: z0 anywhere in (−1, 1)
     }
+    if any(p.name == "gap_lag_time" for p in parameters):
+        # a damped gap crossing ends well within a ramp (else the gap never finishes crossing
+        # and the play would not show): centred on a tenth of the median ramp, not on the run's
+        # length (under that prior a measured fit took a lag 40 ramps long: a gap that stays
+        # put). Wide, so that three sds down — a nested fit's start — the lag is negligible: the
+        # fit is free to take it to zero, the undamped gap. Read off the ramps only when asked for
+        table["gap_lag_time"] = (log(0.1 * (first_look_ramp_time_s(campaign) or max(durations))), 2.0)
     loop = first_look_loop(campaign) if any(p.name in ("gap", "friction_torque") for p in parameters) else None
     if loop is not None:
         play, friction = loop

@@ -19,12 +19,12 @@ from ._compliance import (
 )
 from ._creep import Creep as Creep
 from ._effects import model_with_effects as model_with_effects
-from ._gap_lag import GapLag as GapLag
 from ._friction import (
     AbstractFriction as AbstractFriction,
     DahlFriction as DahlFriction,
     MaxwellSlipFriction as MaxwellSlipFriction,
 )
+from ._gap_lag import GapLag as GapLag
 from ._play import play_scan as play_scan
 from ._inputs import (
     HysteresisInput as HysteresisInput,

@@ -7,10 +7,10 @@ from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawComplia
 from ._creep import Creep
 from ._drift import SHAPES as DRIFT_SHAPES
 from ._friction import DahlFriction, MaxwellSlipFriction
+from ._gap_lag import GapLag
 from ._kinematic import KinematicHarmonics
 from ._speed import SpeedDependence
 from ._temperature import TemperatureDependence
-from ._gap_lag import GapLag
 
 
 def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="auto", free_friction_start: bool = False,

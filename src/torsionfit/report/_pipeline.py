@@ -151,10 +151,10 @@ def prepare_fit(campaign: Campaign, options: FitOptions = FitOptions()):
     return campaign, model, build_problem(campaign, model, options.noise)
 
 
-#: effects whose model contains the model without them as one parameter goes to zero (value:
-#: that parameter, :attr:`~torsionfit.model.Parameter.vanishes_at_zero`); their fit also starts
-#: from the optimum without them
-NESTED_AT_ZERO = {"gap_lag": "gap_lag_time"}
+#: effects whose model contains the model without them as their parameter goes to zero
+#: (:attr:`~torsionfit.model.Parameter.vanishes_at_zero`); their fit also starts from the
+#: optimum without them
+NESTED_AT_ZERO = ("gap_lag",)
 
 
 def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
