@@ -150,3 +150,14 @@ def test_temperature_term_needs_every_runs_temperature():
                                          campaign.reducer.rated_torque_Nm)
     names = [p.name for p in build_problem(one_load, compliance_only).physics]
     assert "temperature_compliance" in names and "temperature_friction" not in names
+
+
+def test_map_programs_compile_with_xla_defaults_where_xla_lacks_the_options(monkeypatch):
+    """The MAP's XLA options (_map.MAP_COMPILER_OPTIONS) are used where this XLA knows them;
+    an XLA without them compiles the MAP's programs with its defaults instead of failing."""
+    _map._map_compiler_options.cache_clear()
+    monkeypatch.setattr(_map, "MAP_COMPILER_OPTIONS", {"xla_torsionfit_no_such_option": True})
+    try:
+        assert _map._map_compiler_options() is None
+    finally:
+        _map._map_compiler_options.cache_clear()

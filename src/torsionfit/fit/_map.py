@@ -5,6 +5,7 @@ The functions here are module-level and jitted on (problem, u): compiled once pe
 problem, reused for every campaign of that shape.
 """
 
+import functools
 from dataclasses import dataclass, field
 
 import equinox as eqx
@@ -18,6 +19,41 @@ from ._problem import NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD, FitProblem
 
 #: the closed-form ρ is capped just inside the density's bound ρ_max (where u would be infinite)
 _RHO_CAP = RHO_MAX * (1.0 - 1e-3)
+
+#: XLA options of the MAP's compiled programs (a noise pass, the Laplace parts, the misfit
+#: check's whitened residuals): on CPU, XLA's LLVM IR emitter instead of its newer fusion
+#: emitters, which took twice as long to compile them. Measured on the SYNTHETIC 10k loop of
+#: benchmarks/bench_full_fit.py (2 cores, side by side): XLA compiled a noise pass in 0.65 s
+#: instead of 1.4 s (1.2 s instead of 2.3 s with the other core busy) and the Laplace parts in
+#: 0.3 s instead of 0.6 s; the warm fit took as long (0.27 s) and gave the same optimum and
+#: covariance bit for bit. Only here: emcee's log-density runs thousands of times, and its
+#: run time, not its compilation, is what counts there.
+MAP_COMPILER_OPTIONS = {"xla_cpu_use_fusion_emitters": False}
+
+
+@functools.cache
+def _map_compiler_options() -> dict | None:
+    """:data:`MAP_COMPILER_OPTIONS` where this XLA knows them (a trivial program compiled with
+    them once per process), else None (XLA's defaults)."""
+    try:
+        jax.jit(lambda x: x + 1, compiler_options=MAP_COMPILER_OPTIONS).lower(
+            jax.ShapeDtypeStruct((), np.float32)).compile()
+    except Exception:  # noqa: BLE001 - an XLA without these options compiles with its defaults
+        return None
+    return MAP_COMPILER_OPTIONS
+
+
+def _map_jit(fn):
+    """``eqx.filter_jit(fn)`` compiled with :data:`MAP_COMPILER_OPTIONS` (checked at the first call)."""
+    jitted = []
+
+    @functools.wraps(fn)
+    def call(*args, **kwargs):
+        if not jitted:
+            jitted.append(eqx.filter_jit(fn, compiler_options=_map_compiler_options()))
+        return jitted[0](*args, **kwargs)
+
+    return call
 
 
 def _weighted_residuals(u_phys, problem: FitProblem, u_noise, data_weight):
@@ -88,7 +124,7 @@ def noise_pass(problem: FitProblem, u_phys, u_noise, solver, max_steps: int):
 
 
 #: one compiled program per pass (compilation dominates a cold fit)
-_solve_pass = eqx.filter_jit(noise_pass)
+_solve_pass = _map_jit(noise_pass)
 
 
 def _physics_jacobian(problem: FitProblem, u):
@@ -102,7 +138,7 @@ def laplace_parts(problem: FitProblem, u):
     return _physics_jacobian(problem, u), sigma, rho, problem.full_values(u)
 
 
-_laplace_parts = eqx.filter_jit(laplace_parts)
+_laplace_parts = _map_jit(laplace_parts)
 
 
 @in_float64
@@ -227,10 +263,10 @@ def nested_start(problem: FitProblem, run_names, u_from, names_from) -> np.ndarr
     return start
 
 
-@in_float64
-def iid_noise(problem: FitProblem) -> jnp.ndarray:
-    """The first pass's noise block: prior noise levels, ρ ≈ 0 (iid)."""
-    return jnp.asarray(np.concatenate([np.asarray(problem.noise_prior_mean), np.full(problem.n_ar1, -30.0)]))
+def iid_noise(problem: FitProblem) -> np.ndarray:
+    """The first pass's noise block: prior noise levels, ρ ≈ 0 (iid). A NumPy array (float64),
+    as the starts: a jitted pass takes it as it is, where ``jnp.asarray`` compiled a program."""
+    return np.concatenate([np.asarray(problem.noise_prior_mean, np.float64), np.full(problem.n_ar1, -30.0)])
 
 
 def best_start(us, lds, oks, messages):
@@ -288,7 +324,9 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     run_names = tuple(run_names or (f"run{i}" for i in range(problem.n_runs)))
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
     iid = iid_noise(problem)
-    firsts = [_solve_pass(problem, jnp.asarray(start), iid if noise is None else jnp.asarray(noise), solver, max_steps)
+    # NumPy starts: the jitted pass takes them as they are (jnp.asarray compiled a program per shape)
+    firsts = [_solve_pass(problem, np.asarray(start, float), iid if noise is None else np.asarray(noise, float),
+                          solver, max_steps)
               for start, noise in _with_warm_starts(problem, map_starts(problem, n_starts, seed), warm_starts)]
     rep = same_optimum([f[0] for f in firsts])
     finals = {}
@@ -300,7 +338,7 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
                      bool(result == optx.RESULTS.successful), _message(result))
     us, lds, oks, messages = zip(*(finals[r] for r in rep))
     u, ld, ok, message = best_start(us, lds, oks, messages)
-    jac, sigma, rho, values = _laplace_parts(problem, jnp.asarray(u))
+    jac, sigma, rho, values = _laplace_parts(problem, u)
     cov = laplace_from_parts(problem, u, jac, sigma, rho)
     values = {k: np.asarray(v) for k, v in values.items()}
     return MapResult(problem=problem, run_names=run_names, u=u, cov=cov, values=values,

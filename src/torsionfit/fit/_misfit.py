@@ -19,11 +19,13 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.stats import chi2
 
+from ._map import _map_jit
+
 MISFIT_BLOCKS = 20  # blocks per run for the batch means
 MISFIT_ALPHA = 0.01  # a ratio is used only when white residuals would exceed it this rarely
 
 
-@eqx.filter_jit
+@_map_jit  # with the MAP's XLA options: fit_campaign compiles it right after the MAP
 def _whitened(problem, u):
     return problem.profile(u)[0]
 
