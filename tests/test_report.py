@@ -168,6 +168,50 @@ def test_fit_command_laplace(tmp_path, noisy_bench, capsys):
     assert {"loop-hyst-5.png", "components-hyst-5.png", "te-vs-angle.png", "kd-vs-speed.png", "pairs.png"} <= figures
 
 
+def test_split_normal_laplace_keeps_the_widths_of_a_gaussian_posterior(laplace_fit):
+    """On its own bench the model's physics posterior is Gaussian: the split normal measured
+    along the Laplace axes keeps their widths (the noise axes are not Gaussian and may move)."""
+    from torsionfit.report._pipeline import laplace_approximation
+
+    _, fit = laplace_fit
+    n = fit.problem.n_nonlinear
+    approx = laplace_approximation(fit.problem, fit.map_result, "split")
+    physics = np.linalg.norm(approx.axes[:n], axis=0) > 0.99
+    assert physics.sum() == n
+    np.testing.assert_allclose(approx.scales[physics], 1.0, atol=0.1)
+    assert laplace_approximation(fit.problem, fit.map_result, "gaussian") is None
+    with pytest.raises(Exception, match="laplace shape must be one of gaussian, split, got 'skewed'"):
+        laplace_approximation(fit.problem, fit.map_result, "skewed")
+
+
+def test_split_normal_of_a_widened_posterior_is_centred_at_its_mode(laplace_fit):
+    """Widened (likelihood to the power 1/k), the prior weighs more and the density's peak moves
+    off the MAP: the split normal is centred at that peak, where the gradient vanishes."""
+    import jax
+    import jax.numpy as jnp
+
+    from torsionfit.fit._misfit import widened
+    from torsionfit.report._pipeline import laplace_approximation
+
+    _, fit = laplace_fit
+    problem, map_result = widened(fit.problem, fit.map_result, 50.0)
+    approx = laplace_approximation(problem, map_result, "split")
+    grad = jax.grad(problem.log_density)
+    at_map, at_centre = (np.linalg.norm(np.asarray(grad(jnp.asarray(u)))) for u in (map_result.u, approx.mean))
+    assert float(problem.log_density(jnp.asarray(approx.mean))) > float(problem.log_density(jnp.asarray(map_result.u)))
+    assert at_centre < 1e-3 * at_map
+
+
+def test_fit_command_laplace_split(tmp_path, noisy_bench):
+    assert main(["simulate", str(noisy_bench), "-o", str(tmp_path / "c"), "--seed", "2"]) == 0
+    assert main(["fit", str(tmp_path / "c"), "-o", str(tmp_path / "fit"), "--sampler", "laplace",
+                 "--laplace-shape", "split", "--seed", "1"]) == 0
+    diag = json.loads((tmp_path / "fit" / "fit.json").read_text())["diagnostics"]
+    assert diag["sampler"] == "laplace" and diag["laplace_shape"] == "split"
+    lo, hi = diag["laplace_scale_range"]
+    assert 0 < lo <= hi
+
+
 @pytest.mark.parametrize("flag, fragment", [
     ("warp_drive", "unknown effect 'warp_drive'"),
     ("kinematic_error=[1, 2", "not a TOML value"),

@@ -138,6 +138,7 @@ def _cmd_fit(args) -> int:
         backend_path=str(out / "chain.h5") if args.resume or args.save_chain else None,
         resume=args.resume,
         decimate=args.decimate,
+        laplace_shape=args.laplace_shape,
     )
     say = _say(args)  # progress once the input is known good: bad input is one line
     say(f"read {args.campaign}: " + _campaign_line(campaign) + f"; sampler {args.sampler}")
@@ -338,6 +339,9 @@ def build_parser() -> argparse.ArgumentParser:
                  help="auto (default): emcee, or NUTS when emcee's first checks show it needs more than "
                       "--max-steps; emcee; nuts (gradient-based, BlackJAX); laplace: the MAP's Gaussian "
                       "approximation (fast screening). The choice and its reason go to fit.json")
+    p.add_argument("--laplace-shape", choices=("gaussian", "split"), default="gaussian",
+                   help="laplace's draws: the Gaussian (default), or a split normal whose half-axes are measured "
+                        "on the posterior (for posteriors that are not Gaussian: widened fits of measured loops)")
     p.add_argument("--walkers", type=int, default=None, help="emcee walkers (default max(32, 2·dim+2))")
     _add_max_steps(p, help="cap on emcee steps; reaching it gives converged: false (auto: the budget "
                            "against which emcee's first checks are judged)")

@@ -41,7 +41,10 @@ class FitOptions:
     ``max_steps``, else NUTS — :func:`sample_posterior`), "emcee", "nuts" (BlackJAX, gradient
     based) or "laplace" (the MAP's Gaussian approximation, fast, for screening).
     ``max_steps``: emcee's step budget; ``n_chains``, ``n_warmup``, ``max_draws``: NUTS's
-    chains, warm-up steps and cap on draws per chain (grown by half from 500 until converged)."""
+    chains, warm-up steps and cap on draws per chain (grown by half from 500 until converged).
+    ``laplace_shape``: the Laplace sampler's draws from the Gaussian ("gaussian") or from a split
+    normal whose half-axes are measured on the posterior ("split", :mod:`torsionfit.sample`'s
+    ``split_normal``: for posteriors that are not Gaussian, e.g. widened fits of measured loops)."""
 
     effects: dict = field(default_factory=dict)
     noise: NoiseOptions = NoiseOptions()
@@ -56,6 +59,7 @@ class FitOptions:
     backend_path: str | None = None
     resume: bool = False
     laplace_draws: int = 4000
+    laplace_shape: str = "gaussian"
     metric_draws: int = 2000  # draws used for the derived metrics
     lost_motion_pct: float = 3.0
     decimate: int = 1  # block means of this many samples before fitting (recorded in fit.json)
@@ -321,13 +325,51 @@ def _sampler_diagnostics(sample_result, used: str, conv: dict, chain: np.ndarray
 
 
 @in_float64
-def _laplace_tree(problem, map_result, draws_u, names, specs, metric_draws, campaign, seed):
-    """The ArviZ tree of Laplace draws ``draws_u`` (one chain) with their metrics."""
+def _laplace_tree(problem, map_result, draws_u, names, specs, metric_draws, campaign, seed, approximation=None):
+    """The ArviZ tree of Laplace draws ``draws_u`` (one chain) with their metrics; drawn from
+    ``approximation`` (a split normal) when given, else from the Gaussian."""
     from ..sample import laplace_result, to_datatree
 
-    result = laplace_result(problem, map_result, draws_u, problem.names(names), seed=seed)
+    result = laplace_result(problem, map_result, draws_u, problem.names(names), seed=seed, approximation=approximation)
     return to_datatree(problem, result, names, metric_specs=specs, metric_draws=metric_draws, campaign=campaign,
                        seed=seed)
+
+
+LAPLACE_SHAPES = ("gaussian", "split")
+
+
+@in_float64
+def laplace_approximation(problem, map_result, shape: str):
+    """None for the Gaussian Laplace approximation; for ``shape="split"`` the
+    :class:`~torsionfit.sample.SplitNormal` measured on ``problem``'s log density along the axes
+    of ``map_result.cov``."""
+    if shape not in LAPLACE_SHAPES:
+        raise InputError(f"laplace shape must be one of {', '.join(LAPLACE_SHAPES)}, got {shape!r}")
+    if shape == "gaussian":
+        return None
+    from ..sample import split_normal
+    from ..sample._emcee import _LogProb
+
+    log_density = _LogProb(problem, batch=256)
+    centre = np.asarray(map_result.u, float)
+    if problem.likelihood_power < 1.0:
+        # a widened posterior's mode is not the MAP: with the likelihood tempered the prior weighs
+        # more (on measured loops the gap's closing torque and the torque knots move towards it,
+        # by up to several Laplace sds) — the split normal is centred where its density peaks
+        moved = np.asarray(_tempered_mode(problem, jnp.asarray(centre)), float)
+        if np.all(np.isfinite(moved)) and log_density(moved[None])[0] > log_density(centre[None])[0]:
+            centre = moved
+    return split_normal(log_density, centre, map_result.cov)
+
+
+@eqx.filter_jit
+def _tempered_mode(problem, u):
+    """The mode of ``problem``'s log density (a widened one) by BFGS from ``u``."""
+    import optimistix as optx
+
+    sol = optx.minimise(lambda x, _: -problem.log_density(x), optx.BFGS(rtol=1e-8, atol=1e-8), u,
+                        max_steps=1000, throw=False)
+    return sol.value
 
 
 def _mark_not_converged(diagnostics: dict, key: str, runs, reason: str) -> None:
@@ -373,10 +415,18 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
         pick = (metric_grid[None, :] * n_chain + np.arange(n_chain)[:, None]).ravel()  # chain by chain
         diagnostics = {"sampler": used, "sampler_choice_reason": choice}
     else:
-        cov = 0.5 * (map_result.cov + map_result.cov.T)
-        draws_u = rng.multivariate_normal(map_result.u, cov, size=options.laplace_draws, method="eigh")
+        approximation = laplace_approximation(problem, map_result, options.laplace_shape)
+        if approximation is None:
+            cov = 0.5 * (map_result.cov + map_result.cov.T)
+            draws_u = rng.multivariate_normal(map_result.u, cov, size=options.laplace_draws, method="eigh")
+        else:
+            draws_u = approximation.draw(rng, options.laplace_draws)
         diagnostics = {
             "sampler": "laplace",
+            "laplace_shape": options.laplace_shape,
+            # the split normal's half-axis widths over the Laplace ones (1: the Gaussian holds)
+            "laplace_scale_range": None if approximation is None else [float(np.min(approximation.scales)),
+                                                                          float(np.max(approximation.scales))],
             "converged": bool(map_result.converged),
             "rhat_max": None,
             "ess_min": float(options.laplace_draws),
@@ -406,7 +456,7 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
         # the first of the metrics' (independent) draws, as one chain, when first asked for
         n_tree = min(len(pick), tree_limit)
         tree = functools.partial(_laplace_tree, problem, map_result, draws_u[pick[:n_tree]], names,
-                                 derived.specs, all_metric_draws[None, :n_tree], campaign, seed)
+                                 derived.specs, all_metric_draws[None, :n_tree], campaign, seed, approximation)
     else:
         tree_metrics = all_metric_draws.reshape(n_chain, len(metric_grid), -1)[:, np.searchsorted(metric_grid, tree_grid)]
         tree = to_datatree(problem, sample_result, names, draws=tree_grid, metric_specs=derived.specs,

@@ -14,6 +14,7 @@ from ._nuts import (
     run_nuts as run_nuts,
 )
 from ._laplace import LaplaceResult as LaplaceResult, laplace_result as laplace_result
+from ._split_normal import SplitNormal as SplitNormal, split_normal as split_normal
 from ._tree import (
     convergence_summary as convergence_summary,
     draw_thinning as draw_thinning,

@@ -40,17 +40,24 @@ def _gaussian_log_density(x: np.ndarray, mean: np.ndarray, cov: np.ndarray) -> n
 
 
 @in_float64
-def laplace_result(problem, map_result, draws_u: np.ndarray, names, *, seed: int | None = None) -> LaplaceResult:
+def laplace_result(problem, map_result, draws_u: np.ndarray, names, *, seed: int | None = None,
+                   approximation=None) -> LaplaceResult:
     """The :class:`LaplaceResult` of ``draws_u`` (draws, dim), drawn from N(``map_result.u``,
-    ``map_result.cov``): evaluates the posterior log density at every draw."""
+    ``map_result.cov``) or from ``approximation`` (a :class:`~torsionfit.sample.SplitNormal`):
+    evaluates the posterior log density at every draw."""
     draws_u = np.asarray(draws_u, dtype=float)
     n, dim = draws_u.shape
     lp = _LogProb(problem, batch=min(n, 256))(draws_u)
-    lq = _gaussian_log_density(draws_u, np.asarray(map_result.u, float), np.asarray(map_result.cov, float))
+    if approximation is not None:
+        lq = approximation.log_density(draws_u)
+    else:
+        lq = _gaussian_log_density(draws_u, np.asarray(map_result.u, float), np.asarray(map_result.cov, float))
     converged = bool(map_result.converged)
     return LaplaceResult(
         chain=draws_u[:, None, :], log_prob=lp[:, None], tau=np.ones(dim), n_steps=n, burn_in=0, thin=1,
         acceptance_fraction=np.ones(1), converged=converged,
         reason="" if converged else f"MAP did not converge: {map_result.message}",
-        names=tuple(names), moves="independent draws of the Laplace approximation", seed=seed,
+        names=tuple(names), seed=seed,
+        moves="independent draws of the Laplace approximation" if approximation is None
+        else "independent draws of a split normal along the Laplace approximation's axes",
         log_q=lq[:, None])
