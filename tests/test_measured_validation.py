@@ -105,3 +105,18 @@ def test_the_validation_fits_with_iid_noise_and_ar1_on_request():
     for noise, words in (("iid", "iid noise with the posterior widened"), ("ar1", "AR(1) noise")):
         assert words in mv.markdown(doc["units"], doc["decimate"], doc["sampler"], doc["effects"], noise).splitlines()[0]
     assert doc["noise"] == "iid"  # the committed table is the validated setting's
+
+
+def test_the_validation_draws_from_the_split_normal_and_the_gaussian_on_request():
+    """Widened fits of these loops are not Gaussian (a ridge ending in walls): the validation's
+    Laplace draws come from the split normal, ``--laplace-shape gaussian`` gives the Gaussian's,
+    and the table and json say which."""
+    assert mv.fit_options(mv.parse_args([])).laplace_shape == "split"
+    assert mv.fit_options(mv.parse_args(["--laplace-shape", "gaussian"])).laplace_shape == "gaussian"
+    import json
+
+    doc = json.loads((ROOT / "docs" / "measured" / "validation" / "validation.json").read_text())
+    assert doc["laplace_shape"] == "split"
+    head = mv.markdown(doc["units"], doc["decimate"], doc["sampler"], doc["effects"], doc["noise"], "split").splitlines()[0]
+    assert "split normal" in head
+    assert "the Gaussian" in mv.markdown(doc["units"], doc["decimate"], "laplace", doc["effects"], "iid", "gaussian").splitlines()[0]
