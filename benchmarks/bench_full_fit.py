@@ -281,8 +281,9 @@ def per_call_costs(tf, npy):
         jax.block_until_ready(no_scan(problem, u_tf))  # traced (and compiled) with the stand-in
     # JAX and NumPy candidates in separate rounds: XLA's worker threads stay busy for a
     # moment after a call and would be charged to the NumPy call that follows
+    tf_logp = tf_emcee.bound_log_density(problem)  # what run_sampler's emcee calls
     out = interleaved_median_ms({
-        "tf_logp": lambda: np.asarray(tf_emcee.batch_log_density(problem, u_tf)),
+        "tf_logp": lambda: np.asarray(tf_logp(u_tf)),
         "tf_forward": lambda: jax.block_until_ready(fwd(problem, u_tf)),
         "tf_logp_no_scan": lambda: jax.block_until_ready(no_scan(problem, u_tf)),
     }, 30)

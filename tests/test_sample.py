@@ -33,7 +33,8 @@ from torsionfit.sample import (
     save_tree,
     to_datatree,
 )
-from torsionfit.sample._emcee import MOVES_DESCRIPTION, _LogProb, _regularised_cov, initial_walkers
+from torsionfit.sample import _emcee
+from torsionfit.sample._emcee import MOVES_DESCRIPTION, batch_log_density, _LogProb, _regularised_cov, initial_walkers
 from torsionfit.sample._laplace_move import LaplaceMove
 from torsionfit.sample._tree import _ar1_noise
 
@@ -337,6 +338,24 @@ def test_log_density_in_fixed_batches_pads_without_changing_values(small):
     shifted = logp(np.concatenate([rows[5:], rows[:5]]))  # the last 5 rows now in the full chunk
     np.testing.assert_allclose(together, np.concatenate([shifted[-5:], shifted[:-5]]), rtol=1e-12)
     assert np.all(np.isfinite(together))
+
+
+def test_bound_log_density_is_batch_log_density_and_shares_its_program(small):
+    """emcee's log-density splits the problem once: the same values bit for bit as the
+    filter_jit one, and a problem differing only in its arrays' values (here the observed
+    twist) reuses the compiled program instead of compiling again."""
+    rng = np.random.default_rng(5)
+    rows = small.start.u + 1e-3 * rng.standard_normal((16, small.problem.dim))
+    bound = _emcee.bound_log_density(small.problem)
+    np.testing.assert_array_equal(np.asarray(bound(rows)), np.asarray(batch_log_density(small.problem, rows)))
+    programs = _emcee._split_program()._cache_size()
+    arrays, _ = eqx.partition(small.problem, eqx.is_array)
+    shifted = jax.tree.map(lambda x: x * (1 + 1e-3) if np.ndim(x) and np.size(x) > 100 else x, arrays)
+    other = eqx.combine(shifted, eqx.partition(small.problem, eqx.is_array)[1])
+    values = np.asarray(_emcee.bound_log_density(other)(rows))
+    assert _emcee._split_program()._cache_size() == programs
+    assert not np.array_equal(values, np.asarray(bound(rows)))  # the new arrays are used
+    np.testing.assert_array_equal(values, np.asarray(batch_log_density(other, rows)))
 
 
 def test_initial_walkers_are_finite_even_from_a_wide_laplace(small):

@@ -57,6 +57,7 @@ Choices, and why:
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import os
@@ -65,12 +66,14 @@ from dataclasses import dataclass, field
 
 import emcee
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import jax.tree_util as jtu
 import numpy as np
 
 from .._x64 import in_float64
 from .._chunks import map_chunks
-from ..fit._map import _map_jit
+from ..fit._map import _map_compiler_options, _map_jit
 from ._convergence import chain_diagnostics, rhat_ess_shortfall
 from ._laplace_move import RETIRE_BELOW, LaplaceMove
 
@@ -149,6 +152,49 @@ def _log_density_one(problem, u):
 batch_log_density = _map_jit(eqx.filter_vmap(_log_density_one, in_axes=(None, 0)))
 
 
+class _StaticParts:
+    """The non-array part of a problem (with the layout of its arrays): the static argument of
+    :func:`_bound_batch_log_density`, hashed once. Problems that differ only in their arrays'
+    values share one compiled program, as with ``eqx.filter_jit``."""
+
+    def __init__(self, array_tree, static):
+        static_leaves, static_tree = jtu.tree_flatten(static)
+        self.parts = (array_tree, static_tree, tuple(static_leaves))
+        self._hash = hash(self.parts)
+
+    def __hash__(self):
+        return self._hash
+
+    def __eq__(self, other):
+        return isinstance(other, _StaticParts) and self.parts == other.parts
+
+    def problem(self, arrays):
+        array_tree, static_tree, static_leaves = self.parts
+        return eqx.combine(jtu.tree_unflatten(array_tree, arrays), jtu.tree_unflatten(static_tree, static_leaves))
+
+
+def _split_batch_log_density(static: _StaticParts, arrays, u):
+    return jax.vmap(functools.partial(_log_density_one, static.problem(arrays)))(u)
+
+
+@functools.cache
+def _split_program():
+    return jax.jit(_split_batch_log_density, static_argnums=0, compiler_options=_map_compiler_options())
+
+
+def bound_log_density(problem):
+    """``chunk ↦ batch_log_density(problem, chunk)`` with the problem split into its arrays and
+    its static part once, not at every call: ``eqx.filter_jit`` partitions and hashes the whole
+    problem on each call, ~0.1 ms of a 1.5 ms call on the SYNTHETIC 10k loop of
+    benchmarks/bench_full_fit.py, and emcee calls it twice per step. Same program, same
+    log-densities bit for bit (tests/test_sample.py)."""
+    arrays, static = eqx.partition(problem, eqx.is_array)
+    leaves, array_tree = jtu.tree_flatten(arrays)
+    key = _StaticParts(array_tree, static)
+    program = _split_program()
+    return lambda chunk: program(key, leaves, chunk)
+
+
 class _LogProb:
     """NumPy wrapper for emcee (``vectorize=True``): (n, dim) → (n,), never NaN.
 
@@ -163,15 +209,18 @@ class _LogProb:
         self.batch = batch
         # the NumPy chunk goes to the compiled function as it is: jit's own transfer was
         # ~0.4 ms per call faster than a jnp.asarray first (16 walkers, 10 001 samples)
-        self.evaluate = evaluate or (lambda chunk: batch_log_density(self.problem, chunk))
+        self.evaluate = evaluate or bound_log_density(problem)
 
     def __call__(self, coords) -> np.ndarray:
         coords = np.atleast_2d(np.asarray(coords, dtype=float))
         ok = np.all(np.isfinite(coords), axis=1)
         # non-finite rows are replaced by a finite one (then rejected) so that no inf or
         # NaN ever enters the JAX function
-        safe = np.where(ok[:, None], coords, 0.0)
-        lp = np.array(map_chunks(self.evaluate, safe, self.batch or len(safe)), dtype=float)
+        safe = np.where(ok[:, None], coords, 0.0) if not ok.all() else coords
+        if len(safe) == self.batch:  # emcee's every step: one chunk, no padding to do
+            lp = np.array(self.evaluate(safe), dtype=float)
+        else:
+            lp = np.array(map_chunks(self.evaluate, safe, self.batch or len(safe)), dtype=float)
         lp[~ok | ~np.isfinite(lp)] = -np.inf
         return lp
 
