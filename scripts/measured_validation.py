@@ -222,6 +222,7 @@ def _reference(path: Path, size: int, held, n: int) -> dict:
     """The Prandtl–Ishlinskii reference fitted to the raw samples except the last large ramp,
     scored on block means of ``size`` samples of the held-out ramp (as the model)."""
     from pi_reference import PIReference, read_loop
+    from repeat_reference import held_out_prediction
 
     t0 = time.perf_counter()
     d = read_loop(path)
@@ -239,6 +240,12 @@ def _reference(path: Path, size: int, held, n: int) -> dict:
     fit, lag = PIReference().fit_lagged(d["time_s"], d["torque_Nm"], y, ~last)
     out["lagged_oos_rest"] = float(np.sqrt(np.mean(_block(fit.predict() - y, size, n)[held] ** 2)) / ARCSEC)
     out["lag_s"] = lag
+    # no model: the earlier large ramps' own twist at the same torque on the same branch — the
+    # ramp-to-ramp walk (and the noise of a few ramps' average) is all its error
+    e = _block(held_out_prediction(d) - d["angle_rad"], size, n)[held]
+    covered = np.isfinite(e)
+    out["repeat_oos"] = float(np.sqrt(np.mean(e[covered] ** 2)) / ARCSEC)
+    out["repeat_covered"] = float(np.mean(covered))
     return out | {"seconds": time.perf_counter() - t0}
 
 
@@ -296,6 +303,11 @@ def _lagged(row: dict) -> str:
     return "n/a" if "lagged_oos_rest" not in ref else f"{ref['lagged_oos_rest']:.0f} ({ref['lag_s']:.1f})"
 
 
+def _repeat(row: dict) -> str:
+    ref = row["reference"].get("repeat_oos")
+    return "n/a" if ref is None else f"{ref:.0f}"
+
+
 def authors_table() -> dict:
     """(play deg, compliance +, compliance −) per 'design/state' from the data README."""
     text = (DATA / "README.md").read_text()
@@ -339,10 +351,12 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
         "reference = Prandtl–Ishlinskii + tanh gap by NNLS (benchmarks/pi_reference.py) on the same split, as designed "
         "(play weights of either sign) and physical (weights ≥ 0: any break-away density, a clockwise loop); "
         "PI + gap lag = the reference with its gap columns on the torque through a first-order lag chosen on the fitted rows (lag in brackets); "
+        "earlier ramps = no model: the held-out ramp predicted by the earlier large ramps' own twist at the same torque on the same branch "
+        "(benchmarks/repeat_reference.py), whose error is the loop's ramp-to-ramp walk; "
         "widened × = the posterior covariance factor for structure the residuals keep (long-run variance ratio, 1 = not widened).",
         "",
-        "| unit | in-sample RMSE | held-out RMSE | held-out RMSE (MAP) | reference held-out | ratio | physical PI held-out | PI + gap lag held-out (s) | 90 % PI coverage | play data (deg) | play model (deg, 95 % HDI) | compliance data (deg/N·m) | compliance model (deg/N·m, 95 % HDI) | widened × | converged |",
-        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | --- | ---: | --- |",
+        "| unit | in-sample RMSE | held-out RMSE | held-out RMSE (MAP) | reference held-out | ratio | physical PI held-out | PI + gap lag held-out (s) | earlier ramps held-out | 90 % PI coverage | play data (deg) | play model (deg, 95 % HDI) | compliance data (deg/N·m) | compliance model (deg/N·m, 95 % HDI) | widened × | converged |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | --- | ---: | --- |",
     ]
     for r in rows:
         pm, cm = r.get("play_model_deg"), r.get("compliance_model_deg_per_Nm")
@@ -351,7 +365,7 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
         cd = np.mean(r["compliance_data_deg_per_Nm"])
         lines.append(
             f"| {r['unit']} | {r['rmse_in_sample_arcsec']:.0f} | {r['rmse_held_out_arcsec']:.0f} | {_map_rmse(r)} | {r['reference']['oos_rest']:.0f} | "
-            f"{r['ratio_held_out']:.2f} | {_physical(r)} | {_lagged(r)} | {100 * r['coverage90_held_out']:.0f} % | {r['play_data_deg']:.3f} | {pm_s} | {cd:.4f} | {cm_s} | {r.get('misfit_inflation', 1.0):.1f} | {r['diagnostics']['converged']} |"
+            f"{r['ratio_held_out']:.2f} | {_physical(r)} | {_lagged(r)} | {_repeat(r)} | {100 * r['coverage90_held_out']:.0f} % | {r['play_data_deg']:.3f} | {pm_s} | {cd:.4f} | {cm_s} | {r.get('misfit_inflation', 1.0):.1f} | {r['diagnostics']['converged']} |"
         )
     ratios = np.array([r["ratio_held_out"] for r in rows])
     cover = np.array([r["coverage90_held_out"] for r in rows])
@@ -375,6 +389,16 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
         lines += ["", f"Against the PI reference with a gap lag (lag {min(lags):.1f}–{max(lags):.1f} s): held-out RMSE at or below it on "
                   f"{int(np.sum(np.array(lagged) <= 1))} of {len(lagged)} loops (≤ 0.8× on {int(np.sum(np.array(lagged) <= 0.8))}; "
                   f"median ratio {np.median(lagged):.2f}, worst {max(lagged):.2f})."]
+    with_repeat = [r for r in rows if "repeat_oos" in r["reference"]]
+    if with_repeat:
+        rep = np.array([r["reference"]["repeat_oos"] for r in with_repeat])
+        model = np.array([r["rmse_held_out_arcsec"] for r in with_repeat])
+        narrow = [r for r in with_repeat if r["coverage90_held_out"] < 0.8]
+        walk = [r for r in narrow if r["rmse_held_out_arcsec"] <= 1.1 * r["reference"]["repeat_oos"]]
+        lines += ["", f"No model, the earlier large ramps' own twist: held-out RMSE {rep.min():.0f}–{rep.max():.0f} (median {np.median(rep):.0f}); "
+                  f"the model's held-out RMSE at or below it on {int(np.sum(model <= rep))} of {len(rep)} loops "
+                  f"(median ratio {np.median(model / rep):.2f}, worst {np.max(model / rep):.2f}); of the {len(narrow)} loops whose "
+                  f"90 % interval covers less than 80 %, the model is below it or within 10 % above on {len(walk)}."]
     authors = authors_table()
     lines += ["", "Per configuration, positions averaged like the data's authors (their numbers from the data's README):", "",
               "| configuration | play authors (deg) | play data | play model (95 % HDI) | compliance authors (deg/N·m) | compliance data | compliance model (95 % HDI) | authors' play in model HDI | authors' compliance in model HDI |",
