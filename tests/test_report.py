@@ -2,6 +2,7 @@
 tests/test_sample.py and the statistical tests)."""
 
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -200,6 +201,42 @@ def test_split_normal_of_a_widened_posterior_is_centred_at_its_mode(laplace_fit)
     at_map, at_centre = (np.linalg.norm(np.asarray(grad(jnp.asarray(u)))) for u in (map_result.u, approx.mean))
     assert float(problem.log_density(jnp.asarray(approx.mean))) > float(problem.log_density(jnp.asarray(map_result.u)))
     assert at_centre < 1e-3 * at_map
+
+
+def test_laplace_note_names_physics_axes_far_from_gaussian():
+    from torsionfit.report._pipeline import laplace_note
+    from torsionfit.sample import SplitNormal
+
+    axes = np.eye(3)  # axes 0, 1: physics (n_physics = 2); axis 2: noise
+    def approx(scales):
+        return SplitNormal(mean=np.zeros(3), axes=axes, sd=np.ones(3), scales=np.asarray(scales, float))
+    off = approx([[1.0, 1.0], [0.3, 1.1], [5.0, 5.0]])
+    note = laplace_note(off, "gaussian", 2)
+    assert "along 1 of its 2 physics axes" in note and "0.30–1.10" in note and "--laplace-shape split" in note
+    assert laplace_note(off, "split", 2) == ""  # the split normal draws: nothing to say
+    assert laplace_note(approx([[1.0, 0.9], [1.2, 1.0], [5.0, 0.1]]), "gaussian", 2) == ""  # the noise axis alone
+    assert laplace_note(None, "gaussian", 2) == ""
+
+
+def test_widened_gaussian_laplace_fit_measures_its_half_axes(laplace_fit):
+    """A widened fit drawing from the Gaussian records the split normal's half-axis range (and a
+    note when a physics axis is far from Gaussian); an unwidened one measures nothing."""
+    from torsionfit.fit._misfit import widened
+    from torsionfit.report._pipeline import finish_fit, laplace_approximation
+
+    sim, fit = laplace_fit
+    assert fit.diagnostics["laplace_scale_range"] is None and "laplace_note" not in fit.diagnostics
+    problem, map_result = widened(fit.problem, fit.map_result, 50.0)
+    options = FitOptions(sampler="laplace", n_starts=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        wide = finish_fit(sim.campaign, options, problem.model, problem, map_result, seed=0)
+    measured = laplace_approximation(problem, map_result, "split")
+    assert wide.diagnostics["laplace_scale_range"] == [float(measured.scales.min()), float(measured.scales.max())]
+    n = problem.n_nonlinear
+    physics = np.linalg.norm(measured.axes[:n], axis=0) > np.sqrt(0.5)
+    far = np.any((measured.scales[physics] < 0.5) | (measured.scales[physics] > 2.0))
+    assert ("laplace_note" in wide.diagnostics) == bool(far)
 
 
 def test_fit_command_laplace_split(tmp_path, noisy_bench):
