@@ -24,6 +24,7 @@ EFFECTS = (
     "distributed_friction",
     "temperature_dependence",
     "gap_lag",  # the gap crossing trails the mesh torque through a first-order lag
+    "series_compliance",  # a share of the compliance ahead of the friction; not in the catalog
     "gap_preload",  # a gap held closed below a preload torque (split-pinwheel designs); not in the catalog
     "encoder_ripple",  # outside the catalog: a sub-division error periodic in the measured angle
 )

@@ -45,6 +45,7 @@ ACCEPTED: dict[str, tuple[str, ...]] = {
     "compliance_asymmetry": ("",),
     "breakaway_spread": ("",),
     "friction_load_coefficient": ("",),
+    "series_share": ("",),
     "drift": ("arcsec_per_s", "arcmin_per_s"),
     "temperature_compliance": ("per_K",),
     "temperature_friction": ("per_K",),

@@ -25,6 +25,7 @@ from ._friction import (
     MaxwellSlipFriction as MaxwellSlipFriction,
 )
 from ._gap_lag import GapLag as GapLag
+from ._series import SeriesCompliance as SeriesCompliance
 from ._play import play_scan as play_scan
 from ._inputs import (
     HysteresisInput as HysteresisInput,

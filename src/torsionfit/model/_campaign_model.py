@@ -27,6 +27,7 @@ from ._inputs import HysteresisInput, TEInput
 from ._kinematic import KinematicHarmonics
 from ._parameter import Parameter
 from ._recurrence import ScanMethod
+from ._series import SeriesCompliance
 from ._speed import SpeedDependence
 from ._temperature import TemperatureDependence
 
@@ -51,6 +52,8 @@ class CampaignModel(eqx.Module):
     speed: SpeedDependence | None = None
     #: compliance and friction level changing with the run's temperature (inputs carry ΔT)
     temperature: TemperatureDependence | None = None
+    #: a share of the compliance ahead of the friction (it sees the applied torque)
+    series: SeriesCompliance | None = None
     drift: bool = eqx.field(static=True, default=False)
     drift_shape: str = eqx.field(static=True, default="linear")  # _drift.SHAPES
     torque_offset: bool = eqx.field(static=True, default=False)
@@ -86,6 +89,8 @@ class CampaignModel(eqx.Module):
             out += self.speed.parameters()
         if self.temperature is not None:
             out += self.temperature.parameters()
+        if self.series is not None:
+            out += self.series.parameters()
         if self.torque_offset:
             out += (Parameter("torque_offset", "real", "N·m", "torque-sensor offset"),)
         if self.free_friction_start and self.n_hysteresis:
@@ -133,7 +138,7 @@ class CampaignModel(eqx.Module):
         friction_params, factor = self._at_temperature(params, data)
         elastic = factor * self.compliance(params, torque)
         geometric = self.backlash(params, torque)
-        friction = factor * self.compliance(params, mesh) + self.backlash(params, mesh) - elastic - geometric
+        friction = self._spring(params, factor, torque, mesh) + self.backlash(params, mesh) - elastic - geometric
         creep = creep + self._gap_delay(params, data, mesh)
         zeros = jnp.zeros_like(torque)
         return self._finish(
@@ -147,10 +152,17 @@ class CampaignModel(eqx.Module):
         """Measured output twist (rad) of one hysteresis run: the components' ``total`` without
         the parts that cancel in it (elastic + friction + geometric = spring and gap at the mesh
         torque) — what a fit evaluates, one compliance and one backlash pass fewer."""
-        _, mesh, _, creep, drift, offset = self._hysteresis_drive(params, data, run_index, hyst_index)
+        torque, mesh, _, creep, drift, offset = self._hysteresis_drive(params, data, run_index, hyst_index)
         _, factor = self._at_temperature(params, data)
         gap = self.backlash(params, self._gap_torque(params, data, mesh))
-        return factor * self.compliance(params, mesh) + gap + creep + drift + offset
+        return self._spring(params, factor, torque, mesh) + gap + creep + drift + offset
+
+    def _spring(self, params, factor, torque, mesh):
+        """Elastic twist (rad) at the mesh torque, a share of it at the applied torque when the
+        compliance is partly ahead of the friction."""
+        if self.series is None:
+            return factor * self.compliance(params, mesh)
+        return self.series.twist(params, lambda t: factor * self.compliance(params, t), torque, mesh)
 
     def _gap_torque(self, params, data, mesh):
         """The torque the gap sees (N·m): the mesh torque, lagged when the crossing is damped."""
@@ -183,7 +195,7 @@ class CampaignModel(eqx.Module):
 
         elastic = spring(load)
         geometric = self.backlash(params, load)
-        friction = spring(mesh) + self.backlash(params, mesh) - elastic - geometric
+        friction = self._spring(params, factor, load, mesh) + self.backlash(params, mesh) - elastic - geometric
         zeros = jnp.zeros_like(phi)
         creep = zeros if self.creep is None else self.creep.steady_twist(params, mesh)
         kinematic = zeros if self.kinematic is None else self.kinematic(params, phi)

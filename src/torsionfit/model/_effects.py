@@ -9,6 +9,7 @@ from ._drift import SHAPES as DRIFT_SHAPES
 from ._friction import DahlFriction, MaxwellSlipFriction
 from ._gap_lag import GapLag
 from ._kinematic import KinematicHarmonics
+from ._series import SeriesCompliance
 from ._speed import SpeedDependence
 from ._temperature import TemperatureDependence
 
@@ -18,7 +19,8 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     """The base model plus the extensions named in ``effects`` (the catalog names of
     DESIGN §3: ``stiffness_nonlinearity``, ``rate_dependence``, ``kinematic_error``,
     ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``,
-    ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``, ``gap_preload``, ``gap_lag``), as a bench file's ``[effects]``
+    ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``, ``gap_preload``, ``gap_lag``,
+    ``series_compliance``), as a bench file's ``[effects]``
     table or a user's switches give them. ``fitted``: the model a fit estimates, whose gap
     is :class:`FrictionClosureBacklash` when no run is a hysteresis run (the same curve, with the
     share of the gap closed at no load in place of a closing torque the data cannot see), or
@@ -72,6 +74,7 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         compliance=compliance,
         creep=Creep() if effects.get("rate_dependence") else None,
         gap_lag=_gap_lag(effects.get("gap_lag", False)),
+        series=_series(effects.get("series_compliance", False)),
         kinematic=kinematic,
         speed=speed,
         drift=bool(drift),
@@ -109,6 +112,13 @@ def _temperature(value):
     if isinstance(value, dict) and set(value) <= {"friction"} and isinstance(value.get("friction", True), bool):
         return TemperatureDependence(friction=value.get("friction", True))
     raise InputError(f"[effects].temperature_dependence: expected true, false or {{friction = false}}, got {value!r}")
+
+
+def _series(value):
+    """``series_compliance``: true or false."""
+    if not isinstance(value, bool):
+        raise InputError(f"[effects].series_compliance: expected true or false, got {value!r}")
+    return SeriesCompliance() if value else None
 
 
 def _gap_lag(value):
