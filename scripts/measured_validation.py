@@ -3,7 +3,8 @@
 
 For each file (one run: the small play ramps and the large stiffness ramps together):
 
-1. fit the file **without its last large ramp** (model: base + ``load_dependent_friction`` +
+1. fit the file **without its last large ramp** (model: base + ``load_dependent_friction``
+   with its level following the load through a first-order lag (``{lag = true}``) +
    ``distributed_friction`` + power-law ``stiffness_nonlinearity`` + ``asymmetry``, ``--effects``
    to change;
    block means of ``--decimate`` samples; iid noise with the posterior widened for structure
@@ -57,7 +58,7 @@ EXAMPLES = ROOT / "examples" / "cycloidal-jv"
 sys.path.insert(0, str(ROOT / "benchmarks"))
 ARCSEC = ANGLE_UNITS["arcsec"]
 DEG = ANGLE_UNITS["deg"]
-EFFECTS = {"load_dependent_friction": True, "distributed_friction": True, "stiffness_nonlinearity": "power_law",
+EFFECTS = {"load_dependent_friction": {"lag": True}, "distributed_friction": True, "stiffness_nonlinearity": "power_law",
            "asymmetry": True}
 SOURCE = "REAL measured data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0"
 

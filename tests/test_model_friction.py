@@ -110,3 +110,32 @@ def test_friction_effects_switch_on_by_name_and_are_differentiable():
         m.model_with_effects(("hysteresis",), {"distributed_friction": "lots"}, 20.0)
     with pytest.raises(Exception, match="load_dependent_friction"):
         m.model_with_effects(("hysteresis",), {"load_dependent_friction": 0.3}, 20.0)
+
+
+def test_a_lagged_load_lowers_the_level_at_the_peak_and_keeps_it_past_the_reversal():
+    """``load_dependent_friction = {lag = true}``: the level follows |τ| through a first-order
+    lag T_L. T_L → 0 is the instantaneous level; with a lag the level at the peak has not caught
+    up with it (a shorter flat span after the reversal), and where the torque crosses zero it
+    has not come down yet (the gap crossing sees the friction of the last peak)."""
+    f_now = m.MaxwellSlipFriction(n_elements=1, load_dependent=True)
+    f_lag = m.MaxwellSlipFriction(n_elements=1, load_dependent=True, load_lag=True)
+    assert [p.name for p in f_lag.parameters()][-1] == "friction_load_lag_time"
+    assert next(p for p in f_lag.parameters() if p.name == "friction_load_lag_time").vanishes_at_zero
+    p = {"friction_torque": 1.0, "friction_load_coefficient": 0.2}
+    tau = _triangle([40.0, 40.0])
+    t = np.arange(len(tau)) * 0.025  # 10 s per leg: 4 N·m/s
+    now = np.asarray(f_now.friction_torque(p, jnp.asarray(tau)))
+    tiny = np.asarray(f_lag.friction_torque({**p, "friction_load_lag_time": 1e-6}, jnp.asarray(tau), time_s=jnp.asarray(t)))
+    np.testing.assert_allclose(tiny, now, atol=1e-5)  # first order in T_L: T_L·μ·d|τ|/dt
+    lagged = {**p, "friction_load_lag_time": 2.0}
+    load = np.asarray(f_lag.level_load(lagged, jnp.asarray(tau), jnp.asarray(t)))
+    top = int(np.argmax(tau[:1200]))
+    assert load[top] < 0.9 * tau[top]  # behind the rising load at the peak …
+    zero = top + int(np.argmin(np.abs(tau[top:top + 400])))
+    assert load[zero] > 0.2 * tau[top]  # … and still well above zero where the torque crosses zero
+    with pytest.raises(ValueError, match="needs the samples' times"):
+        f_lag.friction_torque(lagged, jnp.asarray(tau))
+    model = m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"lag": True}}, 20.0)
+    assert model.friction.load_dependent and model.friction.load_lag
+    with pytest.raises(Exception, match=r"load_dependent_friction: expected true, false or \{lag = true\}"):
+        m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"lag": "yes"}}, 20.0)

@@ -318,3 +318,11 @@ def test_fit_with_a_nested_effect_ends_no_lower_than_the_fit_without_it(tmp_path
     assert with_lag.map_result.log_density >= without.map_result.log_density - 6.2
     # the lag stays negligible: the crossing of a clean loop is not damped
     assert float(with_lag.map_result.values["gap_lag_time"]) < 0.5  # s, against ~2.5 s to cross the gap
+
+
+def test_a_fit_with_parts_that_vanish_at_zero_starts_from_the_model_without_them():
+    from torsionfit.report._pipeline import _without_nested
+
+    effects = {"gap_lag": True, "load_dependent_friction": {"lag": True}, "distributed_friction": True}
+    assert _without_nested(effects) == {"load_dependent_friction": True, "distributed_friction": True}
+    assert _without_nested({"load_dependent_friction": True, "gap_lag": False}) == {"load_dependent_friction": True, "gap_lag": False}

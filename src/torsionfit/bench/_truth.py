@@ -38,6 +38,7 @@ ACCEPTED: dict[str, tuple[str, ...]] = {
     **{k: ("rad", "deg", "arcmin", "arcsec") for k in ("gap", "te_offset", "angle_offset")},
     "creep_time": ("s",),
     "gap_lag_time": ("s",),
+    "friction_load_lag_time": ("s",),
     "viscous_friction": ("Nm_s_per_rad", "Nm_per_rpm"),
     "speed_compliance_1": ("s_per_rad", "per_rpm"),
     "speed_compliance_2": ("s2_per_rad2", "per_rpm2"),

@@ -327,9 +327,10 @@ SIGNATURE_SPREAD = 0.8
 def replace_friction(friction, **changes):
     """``friction`` with its static fields changed."""
     if isinstance(friction, DahlFriction):
-        fields = dict(initial_state=friction.initial_state, load_dependent=friction.load_dependent)
+        fields = dict(initial_state=friction.initial_state, load_dependent=friction.load_dependent, load_lag=friction.load_lag)
         return DahlFriction(**{**fields, **changes})
-    fields = dict(n_elements=friction.n_elements, initial_state=friction.initial_state, load_dependent=friction.load_dependent)
+    fields = dict(n_elements=friction.n_elements, initial_state=friction.initial_state, load_dependent=friction.load_dependent,
+                  load_lag=friction.load_lag)
     return MaxwellSlipFriction(**{**fields, **changes})
 
 
@@ -374,7 +375,8 @@ class DistributedFriction(Effect):
         problem = ctx.map_result.problem
         fr = problem.model.friction
         alt = _with_friction(problem.model, MaxwellSlipFriction(
-            n_elements=DEFAULT_FRICTION_ELEMENTS, initial_state=fr.initial_state, load_dependent=fr.load_dependent))
+            n_elements=DEFAULT_FRICTION_ELEMENTS, initial_state=fr.initial_state, load_dependent=fr.load_dependent,
+            load_lag=fr.load_lag))
         level = float(problem.physics_values(jnp.asarray(ctx.map_result.u))["friction_torque"])
         return _score_test(
             ctx, self.name, alt, {"breakaway_spread": SIGNATURE_SPREAD, "friction_torque": level},

@@ -124,6 +124,10 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         # put). Wide, so that three sds down — a nested fit's start — the lag is negligible: the
         # fit is free to take it to zero, the undamped gap. Read off the ramps only when asked for
         table["gap_lag_time"] = (log(0.1 * (first_look_ramp_time_s(campaign) or max(durations))), 2.0)
+    if any(p.name == "friction_load_lag_time" for p in parameters):
+        # as the gap's lag: a tenth of the median ramp, wide, its nested start (three sds down)
+        # the instantaneous load
+        table["friction_load_lag_time"] = (log(0.1 * (first_look_ramp_time_s(campaign) or max(durations))), 2.0)
     loop = first_look_loop(campaign) if any(p.name in ("gap", "friction_torque") for p in parameters) else None
     if loop is not None:
         play, friction = loop

@@ -122,7 +122,7 @@ class CampaignModel(eqx.Module):
             torque = torque - params["torque_offset"]
         z0 = jnp.atleast_1d(params["friction_start"])[hyst_index] if self.free_friction_start else None
         friction_params, _ = self._at_temperature(params, data)
-        friction_torque = self.friction.friction_torque(friction_params, torque, self.scan, z0)
+        friction_torque = self.friction.friction_torque(friction_params, torque, self.scan, z0, data.time_s)
         mesh = torque - friction_torque
         zeros = jnp.zeros_like(torque)
         creep = zeros if self.creep is None else self.creep.twist(params, data.time_s, mesh, self.scan)

@@ -92,15 +92,18 @@ def _friction(effects: dict):
     """Dahl friction, or Maxwell-slip elements (``distributed_friction``); either with a
     level growing with the load (``load_dependent_friction``)."""
     load = effects.get("load_dependent_friction", False)
+    lag = False
+    if isinstance(load, dict) and set(load) <= {"lag"} and isinstance(load.get("lag", False), bool):
+        load, lag = True, load.get("lag", False)
     if not isinstance(load, bool):
-        raise InputError(f"[effects].load_dependent_friction: expected true or false, got {load!r}")
+        raise InputError(f"[effects].load_dependent_friction: expected true, false or {{lag = true}}, got {load!r}")
     dist = effects.get("distributed_friction", False)
     if dist is False or dist is None:
-        return DahlFriction(load_dependent=load)
+        return DahlFriction(load_dependent=load, load_lag=lag)
     n = dist.get("elements", DEFAULT_FRICTION_ELEMENTS) if isinstance(dist, dict) else DEFAULT_FRICTION_ELEMENTS if dist is True else dist
     if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 64:
         raise InputError(f"[effects].distributed_friction: expected true or {{elements = N}} with 1 ≤ N ≤ 64, got {dist!r}")
-    return MaxwellSlipFriction(n_elements=n, load_dependent=load)
+    return MaxwellSlipFriction(n_elements=n, load_dependent=load, load_lag=lag)
 
 
 def _temperature(value):

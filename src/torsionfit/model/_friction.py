@@ -23,25 +23,46 @@ import numpy as np
 
 from ._parameter import Parameter
 from ._play import play_scan
-from ._recurrence import ScanMethod, affine_scan
+from ._recurrence import ScanMethod, affine_scan, first_order_lag
 
 _LOAD = Parameter("friction_load_coefficient", "unit_interval", "1",
                   "μ: friction level grows by μ·|τ| with the transmitted torque")
+_LOAD_LAG = Parameter("friction_load_lag_time", "positive", "s",
+                      "time constant T_L of the load the friction level follows (|τ| through a first-order lag)",
+                      vanishes_at_zero=True)
 
 
 class AbstractFriction(eqx.Module):
     """Maps a torque sequence to a friction torque sequence (N·m)."""
 
     load_dependent: eqx.AbstractVar[bool]
+    #: the level follows the load through a first-order lag in time (``load_dependent`` only)
+    load_lag: eqx.AbstractVar[bool]
 
     @abc.abstractmethod
     def parameters(self) -> tuple[Parameter, ...]: ...
 
     @abc.abstractmethod
-    def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None): ...
+    def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None, time_s=None): ...
 
     def _load_coefficient(self, params):
         return params["friction_load_coefficient"] if self.load_dependent else 0.0
+
+    def _load_parameters(self) -> tuple[Parameter, ...]:
+        if not self.load_dependent:
+            return ()
+        return (_LOAD, _LOAD_LAG) if self.load_lag else (_LOAD,)
+
+    def level_load(self, params, torque_Nm, time_s=None, method: ScanMethod = "auto"):
+        """The load |τ| (N·m) the friction level grows with, per sample: the transmitted torque's
+        magnitude, or with ``load_lag`` that magnitude through a first-order lag
+        ``T_L·dL/dt = |τ| − L`` (needs ``time_s``; starting at |τ| at the first sample)."""
+        load = jnp.abs(jnp.asarray(torque_Nm))
+        if not (self.load_dependent and self.load_lag):
+            return load
+        if time_s is None:
+            raise ValueError("a friction level following the load with a lag needs the samples' times")
+        return first_order_lag(time_s, load, params["friction_load_lag_time"], method)
 
     def sliding_level(self, params, torque_Nm):
         """Friction torque (N·m) while sliding steadily at torque ``torque_Nm`` (TE runs):
@@ -59,13 +80,14 @@ class DahlFriction(AbstractFriction):
 
     initial_state: float = eqx.field(static=True, default=0.0)
     load_dependent: bool = eqx.field(static=True, default=False)
+    load_lag: bool = eqx.field(static=True, default=False)
 
     def parameters(self):
         out = (
             Parameter("friction_torque", "positive", "N·m", "Coulomb friction level T_f"),
             Parameter("dahl_torque", "positive", "N·m", "torque change τ_d to saturate friction"),
         )
-        return out + ((_LOAD,) if self.load_dependent else ())
+        return out + self._load_parameters()
 
     def state(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None):
         """Friction state z per sample (dimensionless, in (−1, 1)); ``initial_state``
@@ -77,8 +99,9 @@ class DahlFriction(AbstractFriction):
         z = affine_scan(a, b, z0, method)
         return jnp.concatenate([z0[None], z])
 
-    def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None):
-        return self.sliding_level(params, torque_Nm) * self.state(params, torque_Nm, method, initial_state)
+    def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None, time_s=None):
+        level = params["friction_torque"] + self._load_coefficient(params) * self.level_load(params, torque_Nm, time_s, method)
+        return level * self.state(params, torque_Nm, method, initial_state)
 
 
 class MaxwellSlipFriction(AbstractFriction):
@@ -99,6 +122,7 @@ class MaxwellSlipFriction(AbstractFriction):
     n_elements: int = eqx.field(static=True, default=6)
     initial_state: float = eqx.field(static=True, default=0.0)
     load_dependent: bool = eqx.field(static=True, default=False)
+    load_lag: bool = eqx.field(static=True, default=False)
 
     def __check_init__(self):
         if self.n_elements < 1:
@@ -108,7 +132,7 @@ class MaxwellSlipFriction(AbstractFriction):
         out = (Parameter("friction_torque", "positive", "N·m", "sliding friction level T_f (mean break-away)"),)
         if self.n_elements > 1:
             out += (Parameter("breakaway_spread", "positive", "1", "log-sd s of the elements' break-away levels"),)
-        return out + ((_LOAD,) if self.load_dependent else ())
+        return out + self._load_parameters()
 
     def _quantiles(self) -> np.ndarray:
         return np.array([NormalDist().inv_cdf((k + 0.5) / self.n_elements) for k in range(self.n_elements)])
@@ -120,18 +144,19 @@ class MaxwellSlipFriction(AbstractFriction):
         s = params["breakaway_spread"]
         return params["friction_torque"] * jnp.exp(s * self._quantiles() - 0.5 * s**2)
 
-    def mesh_shares(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None):
+    def mesh_shares(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None, time_s=None):
         """Each element's mesh share p_k per sample: (N, n_elements), N·m."""
         tau = jnp.asarray(torque_Nm)
         # every element's level grows in proportion with the load (each contact's friction
         # scales with its normal load), so the break-away spread — gradual pre-sliding — holds
         # at every load; the mean level is T_f + μ|τ|, as for Dahl friction
-        scale = 1.0 + self._load_coefficient(params) * jnp.abs(tau) / params["friction_torque"]
+        load = self.level_load(params, tau, time_s, method)
+        scale = 1.0 + self._load_coefficient(params) * load / params["friction_torque"]
         limit = self.breakaway_levels(params)[None, :] * scale[:, None]
         z0 = self.initial_state if initial_state is None else initial_state
         p0 = tau[0] - z0 * limit[0]
         p = play_scan(tau[1:, None] - limit[1:], tau[1:, None] + limit[1:], p0, method)
         return jnp.concatenate([p0[None, :], p], axis=0)
 
-    def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None):
-        return jnp.asarray(torque_Nm) - jnp.mean(self.mesh_shares(params, torque_Nm, method, initial_state), axis=1)
+    def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None, time_s=None):
+        return jnp.asarray(torque_Nm) - jnp.mean(self.mesh_shares(params, torque_Nm, method, initial_state, time_s), axis=1)

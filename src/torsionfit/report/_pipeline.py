@@ -161,15 +161,25 @@ def prepare_fit(campaign: Campaign, options: FitOptions = FitOptions()):
 NESTED_AT_ZERO = ("gap_lag",)
 
 
+def _without_nested(effects: dict) -> dict:
+    """``effects`` without the parts that vanish at zero: :data:`NESTED_AT_ZERO` effects, and
+    the lag of a load-dependent friction level (``{lag = true}`` → ``true``)."""
+    out = {k: v for k, v in effects.items() if not (k in NESTED_AT_ZERO and v)}
+    if isinstance(out.get("load_dependent_friction"), dict) and out["load_dependent_friction"].get("lag"):
+        out["load_dependent_friction"] = True
+    return out
+
+
 def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
-    """Warm start for a model with a :data:`NESTED_AT_ZERO` effect: the MAP without those
-    effects, their parameter three prior sds below its centre, where the model is the smaller
-    one (:func:`~torsionfit.fit._map.nested_start`). From the prior's starts alone such a fit
-    stopped below the smaller model's optimum on a measured loop, though it contains it."""
-    nested = [k for k in NESTED_AT_ZERO if options.effects.get(k)]
+    """Warm start for a model with a part that vanishes at zero (:func:`_without_nested`): the
+    MAP without it, its parameter three prior sds below its centre, where the model is the
+    smaller one (:func:`~torsionfit.fit._map.nested_start`). From the prior's starts alone such
+    a fit stopped below the smaller model's optimum on a measured loop, though it contains it."""
+    inner_effects = _without_nested(options.effects)
+    nested = [k for k in options.effects if options.effects[k] != inner_effects.get(k)]
     if not nested:
         return None
-    inner_options = dataclasses.replace(options, effects={k: v for k, v in options.effects.items() if k not in nested})
+    inner_options = dataclasses.replace(options, effects=inner_effects)
     inner_problem = build_problem(campaign, campaign_model(campaign, inner_options), options.noise)
     names = [r.name for r in campaign.runs]
     log.info("first the MAP without %s (its optimum is a start of the full fit)", ", ".join(nested))
