@@ -43,15 +43,15 @@ def branches(torque) -> np.ndarray:
     if torque.size == 0:
         return out
     step = REVERSAL_FRACTION * float(np.ptp(torque))
-    branch, direction, start = 0, 0, 0
+    branch, direction = 0, 0
     extreme_at = 0  # the running extreme of the current branch, in its direction
     for n in range(1, torque.size):
         v = torque[n]
-        if direction == 0:  # until the torque has moved by a step, the direction is open
-            if abs(v - torque[start]) > step:
-                direction = 1 if v > torque[start] else -1
-                seg = torque[start:n + 1]
-                extreme_at = start + int(np.argmax(seg) if direction == 1 else np.argmin(seg))
+        if direction == 0:  # until the torque has moved by a step from the first, the direction is open
+            if abs(v - torque[0]) > step:
+                direction = 1 if v > torque[0] else -1
+                seg = torque[:n + 1]
+                extreme_at = int(np.argmax(seg) if direction == 1 else np.argmin(seg))
             continue
         if direction * (v - torque[extreme_at]) >= 0:
             extreme_at = n

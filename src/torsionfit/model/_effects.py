@@ -73,8 +73,8 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         run_kinds=tuple(run_kinds),
         compliance=compliance,
         creep=Creep() if effects.get("rate_dependence") else None,
-        gap_lag=_gap_lag(effects.get("gap_lag", False)),
-        series=_series(effects.get("series_compliance", False)),
+        gap_lag=_switched("gap_lag", effects.get("gap_lag", False), GapLag),
+        series=_switched("series_compliance", effects.get("series_compliance", False), SeriesCompliance),
         kinematic=kinematic,
         speed=speed,
         drift=bool(drift),
@@ -117,15 +117,8 @@ def _temperature(value):
     raise InputError(f"[effects].temperature_dependence: expected true, false or {{friction = false}}, got {value!r}")
 
 
-def _series(value):
-    """``series_compliance``: true or false."""
+def _switched(name: str, value, component):
+    """``component()`` for an effect switched on by ``true``, None for ``false``."""
     if not isinstance(value, bool):
-        raise InputError(f"[effects].series_compliance: expected true or false, got {value!r}")
-    return SeriesCompliance() if value else None
-
-
-def _gap_lag(value):
-    """``gap_lag``: true or false."""
-    if not isinstance(value, bool):
-        raise InputError(f"[effects].gap_lag: expected true or false, got {value!r}")
-    return GapLag() if value else None
+        raise InputError(f"[effects].{name}: expected true or false, got {value!r}")
+    return component() if value else None

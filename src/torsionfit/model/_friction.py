@@ -100,7 +100,7 @@ class DahlFriction(AbstractFriction):
         return jnp.concatenate([z0[None], z])
 
     def friction_torque(self, params, torque_Nm, method: ScanMethod = "auto", initial_state=None, time_s=None):
-        level = params["friction_torque"] + self._load_coefficient(params) * self.level_load(params, torque_Nm, time_s, method)
+        level = self.sliding_level(params, self.level_load(params, torque_Nm, time_s, method))
         return level * self.state(params, torque_Nm, method, initial_state)
 
 

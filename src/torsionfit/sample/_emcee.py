@@ -154,7 +154,7 @@ batch_log_density = _map_jit(eqx.filter_vmap(_log_density_one, in_axes=(None, 0)
 
 class _StaticParts:
     """The non-array part of a problem (with the layout of its arrays): the static argument of
-    :func:`_bound_batch_log_density`, hashed once. Problems that differ only in their arrays'
+    :func:`_split_batch_log_density`, hashed once. Problems that differ only in their arrays'
     values share one compiled program, as with ``eqx.filter_jit``."""
 
     def __init__(self, array_tree, static):
