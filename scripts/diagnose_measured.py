@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 from torsionfit.diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
+from torsionfit.fit import NoiseOptions
 from torsionfit.io import decimate, load_campaign
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,6 +44,8 @@ def main(argv=None) -> int:
     parser.add_argument("--all", action="store_true", help="every measured loop (21)")
     parser.add_argument("--decimate", type=int, default=16, help="block means of N samples (the loops are sampled at ~400 Hz)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--ar1", choices=("auto", "on", "off"), default="auto",
+                        help="AR(1) residuals (auto: the fit's default, on for runs of >= 100 samples)")
     args = parser.parse_args(argv)
     if not (ROOT.parent / "shared" / "data" / "cycloidal-jv").is_dir():
         print("../shared/data/cycloidal-jv is absent: nothing to diagnose")
@@ -53,7 +56,8 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         campaign = decimate(load_campaign(MANIFESTS / f"{unit}.toml"), args.decimate)
         say = lambda text, unit=unit: print(f"[{unit}] {text}", file=sys.stderr, flush=True)  # noqa: E731
-        result = diagnose(campaign, DiagnoseOptions(), seed=args.seed, progress=say)
+        noise = NoiseOptions(ar1={"auto": None, "on": True, "off": False}[args.ar1])
+        result = diagnose(campaign, DiagnoseOptions(noise=noise), seed=args.seed, progress=say)
         doc = write_diagnosis(result, campaign, args.output / unit)
         seconds = time.perf_counter() - t0
         print(summary_text(doc), file=sys.stderr)

@@ -120,6 +120,23 @@ def test_metrics_json_records_version_and_command_line(tmp_path, capsys):
                                  "command": f"torsionfit metrics {tmp_path / 'c'} --json"}
 
 
+@pytest.mark.parametrize("flag, ar1", [([], None), (["--ar1", "off"], False), (["--ar1", "on"], True)])
+def test_diagnose_passes_its_noise_option_to_every_fit(tmp_path, capsys, monkeypatch, flag, ar1):
+    import torsionfit.diagnose as diagnose_module
+
+    class Seen(Exception):
+        pass
+
+    def capture(campaign, options, seed=0, progress=None):
+        raise Seen(options.noise.ar1)
+
+    main(["simulate", str(BENCH), "-o", str(tmp_path / "c"), "--quiet"])
+    monkeypatch.setattr(diagnose_module, "diagnose", capture)
+    with pytest.raises(Seen) as seen:
+        main(["diagnose", str(tmp_path / "c"), "-o", str(tmp_path / "d"), "--quiet", *flag])
+    assert seen.value.args == (ar1,)
+
+
 def test_command_line_is_quoted_as_a_shell_takes_it_back():
     assert command_line(["fit", "my campaign/campaign.toml", "--with", "kinematic_error=[1, 2]"]) == \
         "torsionfit fit 'my campaign/campaign.toml' --with 'kinematic_error=[1, 2]'"

@@ -55,13 +55,25 @@ def _gap_lag(rng):
     return {"gap_lag": True}, {"gap_lag_time_s": rng.uniform(2.0, 4.0)}, ()
 
 
+def _load_lag(rng):
+    # the level follows |τ| through a lag of 30–40 s (the ramps to 380 N·m take 95 s; on the
+    # measured loops T_L is 0.02–1 s against ramps of 10 s): on a ramp at 4 N·m/s the level
+    # runs 120–160 N·m of load behind, μ·that = 6–10 N·m of friction; at 15–25 s (2–4 N·m) the
+    # instantaneous level's refit absorbed it to within 10 % of the noise (log10 p −5)
+    return ({"load_dependent_friction": {"lag": True}},
+            {"friction_load_coefficient": rng.uniform(0.05, 0.06), "friction_load_lag_time_s": rng.uniform(30.0, 40.0)}, ())
+
+
 CASES = {"load_dependent_friction": _load_dependent, "distributed_friction": _distributed, "gap_lag": _gap_lag}
+#: a finding in two steps: the load dependence, then its lag
+STEPS = {"friction_load_lag": (_load_lag, ["load_dependent_friction", "friction_load_lag"])}
 
 
 def friction_case(folder: Path, effect: str | None, seed: int) -> Case:
     """``effect`` (None: nothing) switched on in base.toml, parameters and noise from ``seed``."""
     label = effect or "clean"
-    effects, truth, drop = CASES[effect](np.random.default_rng(_seed("parameters", effect, seed))) if effect else ({}, {}, ())
+    make = CASES[effect] if effect in CASES else STEPS[effect][0] if effect else None
+    effects, truth, drop = make(np.random.default_rng(_seed("parameters", effect, seed))) if effect else ({}, {}, ())
     campaign, _ = _undeclared_campaign(folder, effects, truth, _seed("noise", label, seed), drop, BASE)
     print(label, truth)
     return Case(campaign, _seed("diagnose", label, seed) % 1000, effects, truth)
@@ -93,10 +105,21 @@ def test_diagnose_finds_undeclared_friction(tmp_path, effect, seed):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
+def test_diagnose_finds_a_friction_level_lagging_the_load(tmp_path, seed):
+    d = _run(tmp_path, "friction_load_lag", seed)
+    assert [s.effect for s in d.steps] == STEPS["friction_load_lag"][1], _summary(d)
+    assert d.final.effects["load_dependent_friction"] == {"lag": True}, _summary(d)
+    lag = d.steps[1]
+    assert lag.delta_elpd > 2 * lag.delta_elpd_se and lag.after.rmse_arcsec < lag.before.rmse_arcsec, _summary(d)
+    assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
+    assert not d.unexplained, _summary(d)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
 def test_clean_friction_campaign_adds_neither(tmp_path, seed):
     d = _run(tmp_path, None, seed)
     assert d.steps == [], _summary(d)
     last = {ev.effect: ev for ev in d.signatures[-1]}
-    for name in CASES:
+    for name in CASES:  # the lag's signature needs a load-dependent level first: not tested here
         assert name in last and not last[name].significant(DiagnoseOptions().alpha), _summary(d)
     assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)

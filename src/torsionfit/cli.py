@@ -162,7 +162,10 @@ def _cmd_diagnose(args) -> int:
 
     campaign = decimate(load_campaign(args.campaign), args.decimate)
     check_fittable(campaign)  # before the model is built from the rated torque
-    options = DiagnoseOptions(initial_effects=_parse_effects(args.with_))
+    from .fit import NoiseOptions
+
+    ar1 = {"auto": None, "on": True, "off": False}[args.ar1]
+    options = DiagnoseOptions(initial_effects=_parse_effects(args.with_), noise=NoiseOptions(ar1=ar1))
     say = _say(args)  # progress once the input is known good: bad input is one line
     say(f"read {args.campaign}: " + _campaign_line(campaign))
     result = diagnose(campaign, options, seed=args.seed, progress=say)
@@ -362,6 +365,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_seed(p)
     _add_with(p, help="start from a model with this extension already on (repeatable)")
     _add_decimate(p, help="diagnose block means of N consecutive samples (dense benches)")
+    p.add_argument("--ar1", choices=("auto", "on", "off"), default="auto",
+                   help="AR(1) residuals (auto: runs of >= 100 samples); off for measured loops whose misfit is slow")
     p.set_defaults(func=_cmd_diagnose)
 
     p = sub.add_parser(

@@ -358,6 +358,40 @@ class LoadDependentFriction(Effect):
         return {**effects, self.name: True}
 
 
+class FrictionLoadLag(Effect):
+    name = "friction_load_lag"
+    signature_text = ("the loop leaves a peak sooner and crosses the gap further from zero after a large cycle than a "
+                      "friction level following the instantaneous load allows")
+    extension_text = "the load-dependent friction level follows |τ| through a first-order lag T_L"
+
+    def applicable(self, ctx):
+        fr = ctx.map_result.problem.model.friction
+        return bool(ctx.hysteresis) and fr.load_dependent and not fr.load_lag
+
+    def signature(self, ctx, alpha):
+        # The score of T_L at T_L → 0, as for the gap lag: the prediction's derivative with
+        # respect to the lag, μ·(−T_L·d|τ|/dt) through the friction level, tested against
+        # everything a refit of the present parameters absorbs; evaluated at a lag far below
+        # one sample step, where the lag is the identity to first order.
+        problem = ctx.map_result.problem
+        alt = _with_friction(problem.model, replace_friction(problem.model.friction, load_lag=True))
+        return _score_test(
+            ctx, self.name, alt, {"friction_load_lag_time": _tiny_lag(ctx)},
+            lambda pred, alt_pred, alt_jac: alt_jac["friction_load_lag_time"][:, None],
+            "residual along the fitted model's response to a friction level lagging the load (|τ| lagged by "
+            "T_L → 0: −μ·T_L·d|τ|/dt in the level): the level is behind the load at a peak and still up after it")
+
+    def extend(self, effects, evidence, ctx):
+        level = effects.get("load_dependent_friction", True)
+        return {**effects, "load_dependent_friction": {**(level if isinstance(level, dict) else {}), "lag": True}}
+
+
+def _tiny_lag(ctx) -> float:
+    """A time constant far below one sample step (s): a lag there is the identity to first order."""
+    steps = np.concatenate([np.diff(r.time_s) for r in ctx.hysteresis])
+    return 1e-4 * float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1e-6
+
+
 class DistributedFriction(Effect):
     name = "distributed_friction"
     signature_text = "rounded pre-sliding after reversals that one Dahl element cannot follow"
@@ -405,10 +439,8 @@ class GapLag(Effect):
         # step, where the lag is the identity to first order.
         problem = ctx.map_result.problem
         alt = eqx.tree_at(lambda mm: mm.gap_lag, problem.model, GapLagTerm(), is_leaf=lambda x: x is None)
-        steps = np.concatenate([np.diff(r.time_s) for r in ctx.hysteresis])
-        tiny = 1e-4 * float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1e-6
         return _score_test(
-            ctx, self.name, alt, {"gap_lag_time": tiny},
+            ctx, self.name, alt, {"gap_lag_time": _tiny_lag(ctx)},
             lambda pred, alt_pred, alt_jac: alt_jac["gap_lag_time"][:, None],
             "residual along the fitted model's response to a damped gap crossing (the gap at the mesh torque "
             "lagged by T_g → 0: −T_g·dτ_m/dt through the gap): the gap is crossed late")
@@ -470,6 +502,7 @@ CATALOG: tuple[Effect, ...] = (
     ThermalDrift(),
     TorqueOffset(),
     LoadDependentFriction(),
+    FrictionLoadLag(),
     DistributedFriction(),
     TemperatureDependence(),
     GapLag(),
