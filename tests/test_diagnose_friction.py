@@ -65,15 +65,15 @@ def _load_lag(rng):
 
 
 CASES = {"load_dependent_friction": _load_dependent, "distributed_friction": _distributed, "gap_lag": _gap_lag}
-#: a finding in two steps: the load dependence, then its lag
-STEPS = {"friction_load_lag": (_load_lag, ["load_dependent_friction", "friction_load_lag"])}
+#: found in two steps (the load dependence, then its lag): a case of its own
+LAG_STEPS = ["load_dependent_friction", "friction_load_lag"]
+BUILDERS = {**CASES, "friction_load_lag": _load_lag}
 
 
 def friction_case(folder: Path, effect: str | None, seed: int) -> Case:
     """``effect`` (None: nothing) switched on in base.toml, parameters and noise from ``seed``."""
     label = effect or "clean"
-    make = CASES[effect] if effect in CASES else STEPS[effect][0] if effect else None
-    effects, truth, drop = make(np.random.default_rng(_seed("parameters", effect, seed))) if effect else ({}, {}, ())
+    effects, truth, drop = BUILDERS[effect](np.random.default_rng(_seed("parameters", effect, seed))) if effect else ({}, {}, ())
     campaign, _ = _undeclared_campaign(folder, effects, truth, _seed("noise", label, seed), drop, BASE)
     print(label, truth)
     return Case(campaign, _seed("diagnose", label, seed) % 1000, effects, truth)
@@ -107,7 +107,7 @@ def test_diagnose_finds_undeclared_friction(tmp_path, effect, seed):
 @pytest.mark.parametrize("seed", SEEDS)
 def test_diagnose_finds_a_friction_level_lagging_the_load(tmp_path, seed):
     d = _run(tmp_path, "friction_load_lag", seed)
-    assert [s.effect for s in d.steps] == STEPS["friction_load_lag"][1], _summary(d)
+    assert [s.effect for s in d.steps] == LAG_STEPS, _summary(d)
     assert d.final.effects["load_dependent_friction"] == {"lag": True}, _summary(d)
     lag = d.steps[1]
     assert lag.delta_elpd > 2 * lag.delta_elpd_se and lag.after.rmse_arcsec < lag.before.rmse_arcsec, _summary(d)

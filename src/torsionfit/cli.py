@@ -17,6 +17,8 @@ from ._provenance import command_line, provenance
 EXIT_INPUT_ERROR = 2
 #: exit code after Ctrl-C (128 + SIGINT, as shells report it)
 EXIT_INTERRUPTED = 130
+#: --ar1 choices: NoiseOptions.ar1 (auto: AR(1) on runs of >= 100 samples)
+AR1 = {"auto": None, "on": True, "off": False}
 
 
 def _cmd_simulate(args) -> int:
@@ -124,11 +126,10 @@ def _cmd_fit(args) -> int:
 
     campaign = load_campaign(args.campaign)
     check_fittable(campaign)  # before the model is built from the rated torque
-    ar1 = {"auto": None, "on": True, "off": False}[args.ar1]
     out = Path(args.output)
     options = FitOptions(
         effects=_parse_effects(args.with_),
-        noise=NoiseOptions(ar1=ar1, student_t_dof=args.student_t),
+        noise=NoiseOptions(ar1=AR1[args.ar1], student_t_dof=args.student_t),
         sampler=args.sampler,
         n_walkers=args.walkers,
         max_steps=args.max_steps,
@@ -157,15 +158,12 @@ def _cmd_fit(args) -> int:
 
 def _cmd_diagnose(args) -> int:
     from .diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
-    from .fit import check_fittable
+    from .fit import NoiseOptions, check_fittable
     from .io import decimate, load_campaign
 
     campaign = decimate(load_campaign(args.campaign), args.decimate)
     check_fittable(campaign)  # before the model is built from the rated torque
-    from .fit import NoiseOptions
-
-    ar1 = {"auto": None, "on": True, "off": False}[args.ar1]
-    options = DiagnoseOptions(initial_effects=_parse_effects(args.with_), noise=NoiseOptions(ar1=ar1))
+    options = DiagnoseOptions(initial_effects=_parse_effects(args.with_), noise=NoiseOptions(ar1=AR1[args.ar1]))
     say = _say(args)  # progress once the input is known good: bad input is one line
     say(f"read {args.campaign}: " + _campaign_line(campaign))
     result = diagnose(campaign, options, seed=args.seed, progress=say)
@@ -351,7 +349,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--chains", type=int, default=4, help="NUTS chains (default 4)")
     p.add_argument("--max-draws", type=int, default=4000,
                    help="cap on NUTS draws per chain (500, grown by half until converged); reaching it gives converged: false")
-    p.add_argument("--ar1", choices=("auto", "on", "off"), default="auto", help="AR(1) residuals (auto: runs of ≥ 100 samples)")
+    p.add_argument("--ar1", choices=tuple(AR1), default="auto", help="AR(1) residuals (auto: runs of ≥ 100 samples)")
     p.add_argument("--student-t", type=float, default=None, metavar="DOF", help="Student-t likelihood with DOF degrees of freedom")
     p.add_argument("--save-chain", action="store_true",
                    help="keep the chain in OUTPUT/chain.h5 (emcee) / OUTPUT/chain-nuts.npz (NUTS)")
@@ -365,7 +363,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_seed(p)
     _add_with(p, help="start from a model with this extension already on (repeatable)")
     _add_decimate(p, help="diagnose block means of N consecutive samples (dense benches)")
-    p.add_argument("--ar1", choices=("auto", "on", "off"), default="auto",
+    p.add_argument("--ar1", choices=tuple(AR1), default="auto",
                    help="AR(1) residuals (auto: runs of >= 100 samples); off for measured loops whose misfit is slow")
     p.set_defaults(func=_cmd_diagnose)
 

@@ -375,9 +375,8 @@ class FrictionLoadLag(Effect):
         # one sample step, where the lag is the identity to first order.
         problem = ctx.map_result.problem
         alt = _with_friction(problem.model, replace_friction(problem.model.friction, load_lag=True))
-        return _score_test(
-            ctx, self.name, alt, {"friction_load_lag_time": _tiny_lag(ctx)},
-            lambda pred, alt_pred, alt_jac: alt_jac["friction_load_lag_time"][:, None],
+        return _lag_score_test(
+            ctx, self.name, alt, "friction_load_lag_time",
             "residual along the fitted model's response to a friction level lagging the load (|τ| lagged by "
             "T_L → 0: −μ·T_L·d|τ|/dt in the level): the level is behind the load at a peak and still up after it")
 
@@ -386,10 +385,14 @@ class FrictionLoadLag(Effect):
         return {**effects, "load_dependent_friction": {**(level if isinstance(level, dict) else {}), "lag": True}}
 
 
-def _tiny_lag(ctx) -> float:
-    """A time constant far below one sample step (s): a lag there is the identity to first order."""
+def _lag_score_test(ctx: FitContext, name: str, alt, parameter: str, description: str) -> Evidence:
+    """Score test of a first-order lag ``parameter`` of ``alt`` at a time constant far below one
+    sample step, where the lag is the identity to first order: the prediction's derivative with
+    respect to it is the direction the missing lag leaves in the residual."""
     steps = np.concatenate([np.diff(r.time_s) for r in ctx.hysteresis])
-    return 1e-4 * float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1e-6
+    tiny = 1e-4 * float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1e-6
+    return _score_test(ctx, name, alt, {parameter: tiny}, lambda pred, alt_pred, alt_jac: alt_jac[parameter][:, None],
+                       description)
 
 
 class DistributedFriction(Effect):
@@ -439,9 +442,8 @@ class GapLag(Effect):
         # step, where the lag is the identity to first order.
         problem = ctx.map_result.problem
         alt = eqx.tree_at(lambda mm: mm.gap_lag, problem.model, GapLagTerm(), is_leaf=lambda x: x is None)
-        return _score_test(
-            ctx, self.name, alt, {"gap_lag_time": _tiny_lag(ctx)},
-            lambda pred, alt_pred, alt_jac: alt_jac["gap_lag_time"][:, None],
+        return _lag_score_test(
+            ctx, self.name, alt, "gap_lag_time",
             "residual along the fitted model's response to a damped gap crossing (the gap at the mesh torque "
             "lagged by T_g → 0: −T_g·dτ_m/dt through the gap): the gap is crossed late")
 
