@@ -71,6 +71,21 @@ def test_rate_dependence_effect_changes_the_data():
     assert np.max(np.abs(np.asarray(plain) - np.asarray(crept))) > 1e-5
 
 
+def test_gap_steps_effect_moves_the_gap_crossing():
+    """A gap taken up in steps (``gap_steps``) simulates: with most of the gap at the last step
+    the loading branch crosses it later than with the smooth gap; without its shares in
+    [truth] the bench stops with one line."""
+    bench = load_bench(BASE)
+    plain = simulate(bench).components[0]["geometric"]
+    stepped = simulate(load_bench_with(BASE, "[effects]\ngap_steps = {steps = 3, span_Nm = 60.0}\n",
+                                       "gap_step_logits = [-4.0, 4.0]\n")).components[0]["geometric"]
+    plain, stepped = np.asarray(plain), np.asarray(stepped)
+    assert np.ptp(stepped) == pytest.approx(np.ptp(plain), rel=1e-3)  # the same gap β
+    assert np.max(np.abs(stepped - plain)) > 0.3 * np.ptp(plain)  # crossed elsewhere
+    with pytest.raises(InputError, match="gap_step_logits"):
+        simulate(load_bench_with(BASE, "[effects]\ngap_steps = {steps = 3, span_Nm = 60.0}\n", ""))
+
+
 def load_bench_with(path, effects, truth_extra, tmp=[]):
     import tempfile
 

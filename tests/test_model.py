@@ -218,6 +218,41 @@ def test_gap_preload_switch():
         m.model_with_effects(("hysteresis",), {"gap_preload": "yes"}, 20.0)
 
 
+def test_stepped_gap():
+    """A gap taken up in steps: it spans the whole gap like the smooth gap, one step carrying
+    every share is a smooth gap moved to that step's torque, and a step's share is the twist
+    taken up across it."""
+    b = m.SteppedBacklash(n_steps=3, span_Nm=4.0)
+    tau = jnp.linspace(-30.0, 30.0, 601)
+    params = dict(gap=2e-3, gap_torque=0.3, gap_step_logits=jnp.array([0.5, -1.0]))
+    theta = np.asarray(b(params, tau))
+    assert theta[-1] - theta[0] == pytest.approx(params["gap"], rel=1e-9)
+    assert np.all(np.diff(theta) >= 0)
+    # the steps at −4, 0, +4 N·m: the twist across each is its share of the gap
+    shares = np.asarray(b.shares(params))
+    across = np.diff(np.asarray(b(params, jnp.array([-30.0, -2.0, 2.0, 30.0]))))
+    np.testing.assert_allclose(across, shares * params["gap"], rtol=1e-4)  # tanh tails 2 N·m from a step
+    one = dict(params, gap_step_logits=jnp.array([60.0, 0.0]))  # all of it at 0 N·m
+    np.testing.assert_allclose(b(one, tau), m.SmoothBacklash()(params, tau), rtol=0, atol=1e-15)
+
+
+def test_gap_steps_switch():
+    """``gap_steps`` gives the stepped gap to loops; a malformed value, a campaign without a loop
+    or a combination with the preloaded gap stops with one line."""
+    model = m.model_with_effects(("hysteresis",), {"gap_steps": {"steps": 5, "span_Nm": 3.0}}, 20.0, fitted=True)
+    assert isinstance(model.backlash, m.SteppedBacklash)
+    assert (model.backlash.n_steps, model.backlash.span_Nm) == (5, 3.0)
+    sizes = {p.name: p.size for p in model.parameters()}
+    assert sizes["gap_step_logits"] == 4
+    for bad in (True, {}, {"steps": 1, "span_Nm": 4.0}, {"steps": 4, "span_Nm": -1.0}, {"steps": 4, "span_Nm": 4, "width": 2}):
+        with pytest.raises(InputError, match=r"\[effects\]\.gap_steps: expected \{steps = N, span_Nm = S\}"):
+            m.model_with_effects(("hysteresis",), {"gap_steps": bad}, 20.0)
+    with pytest.raises(InputError, match=r"gap_steps: needs a hysteresis run"):
+        m.model_with_effects(("transmission_error",), {"gap_steps": {"span_Nm": 4.0}}, 20.0, fitted=True)
+    with pytest.raises(InputError, match=r"cannot be combined with gap_preload"):
+        m.model_with_effects(("hysteresis",), {"gap_steps": {"span_Nm": 4.0}, "gap_preload": True}, 20.0)
+
+
 def angle_at_rated(rate, creep_on=True):
     model = m.CampaignModel(run_kinds=("hysteresis",), creep=m.Creep() if creep_on else None)
     p = base_params(creep_stiffness=1.0e6, creep_time=5.0)

@@ -47,6 +47,7 @@ ACCEPTED: dict[str, tuple[str, ...]] = {
     "breakaway_spread": ("",),
     "friction_load_coefficient": ("",),
     "series_share": ("",),
+    "gap_step_logits": ("",),
     "drift": ("arcsec_per_s", "arcmin_per_s"),
     "temperature_compliance": ("per_K",),
     "temperature_friction": ("per_K",),

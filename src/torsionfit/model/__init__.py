@@ -8,6 +8,7 @@ from ._backlash import (
     NoBacklash as NoBacklash,
     PreloadedBacklash as PreloadedBacklash,
     SmoothBacklash as SmoothBacklash,
+    SteppedBacklash as SteppedBacklash,
 )
 from ._campaign_model import COMPONENTS as COMPONENTS, CampaignModel as CampaignModel
 from ._compliance import (

@@ -3,6 +3,7 @@
 import abc
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 
 from ._parameter import Parameter
@@ -91,6 +92,47 @@ class PreloadedBacklash(AbstractBacklash):
     def __call__(self, params, mesh_torque_Nm):
         w, tp = params["gap_torque"], params["gap_preload_torque"]
         return 0.25 * params["gap"] * (jnp.tanh((mesh_torque_Nm - tp) / w) + jnp.tanh((mesh_torque_Nm + tp) / w))
+
+
+class SteppedBacklash(AbstractBacklash):
+    """A gap taken up in several steps, as by the pins of a printed pinwheel whose clearances
+    differ: ``N`` smooth steps at mesh torques ``c_k`` spread evenly over ``±span_Nm``, each of
+    width τ_β, sharing the gap β by weights ``w_k`` (a softmax of ``N − 1`` free logits, the
+    first step's fixed at 0):
+
+        ``θ_g = (β/2)·Σ_k w_k·tanh((τ_m − c_k)/τ_β)``
+
+    Like :class:`SmoothBacklash` the twist runs from −β/2 to +β/2; the steps' positions are
+    fixed by the construction, their shares fitted (the Prandtl–Ishlinskii reference's gap
+    columns, with weights that sum to the gap)."""
+
+    n_steps: int = eqx.field(static=True, default=6)
+    span_Nm: float = eqx.field(static=True, default=4.0)
+
+    def __check_init__(self):
+        if not (isinstance(self.n_steps, int) and self.n_steps >= 2):
+            raise ValueError(f"SteppedBacklash: n_steps must be an integer ≥ 2, got {self.n_steps!r}")
+        if not self.span_Nm > 0:
+            raise ValueError(f"SteppedBacklash: span_Nm must be positive, got {self.span_Nm!r}")
+
+    def parameters(self):
+        return (
+            Parameter("gap", "positive", "rad", "geometric gap β (lost motion of the mesh)"),
+            Parameter("gap_torque", "positive", "N·m", "mesh torque τ_β over which each step of the gap closes"),
+            Parameter("gap_step_logits", "real", "1", "log shares of the gap's steps 2…N against the first",
+                      size=self.n_steps - 1),
+        )
+
+    def centres_Nm(self):
+        return jnp.linspace(-self.span_Nm, self.span_Nm, self.n_steps)
+
+    def shares(self, params):
+        logits = jnp.concatenate([jnp.zeros(1), jnp.atleast_1d(params["gap_step_logits"])])
+        return jax.nn.softmax(logits)
+
+    def __call__(self, params, mesh_torque_Nm):
+        steps = jnp.tanh((mesh_torque_Nm[..., None] - self.centres_Nm()) / params["gap_torque"])
+        return 0.5 * params["gap"] * steps @ self.shares(params)
 
 
 class NoBacklash(AbstractBacklash):

@@ -1,7 +1,7 @@
 """Switching model extensions on by name (the effects catalog's names, DESIGN §3)."""
 
 from .._errors import InputError
-from ._backlash import ClosedGapBacklash, FrictionClosureBacklash, PreloadedBacklash, SmoothBacklash
+from ._backlash import ClosedGapBacklash, FrictionClosureBacklash, PreloadedBacklash, SmoothBacklash, SteppedBacklash
 from ._campaign_model import CampaignModel
 from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, ThreeSegmentCompliance
 from ._creep import Creep
@@ -60,11 +60,14 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         raise InputError(f"[effects].gap_preload: expected true or false, got {preload!r}")
     if preload and closed:
         raise InputError("[effects].gap_preload: needs a hysteresis run (a TE run sees the gap closed or at its no-load share, never the preload)")
+    steps = _gap_steps(effects.get("gap_steps", False))
+    if steps is not None and (preload or closed):
+        raise InputError("[effects].gap_steps: needs a hysteresis run and cannot be combined with gap_preload")
     if closed:
         loaded = te_loads_Nm is not None and len(te_loads_Nm) > 0 and min(abs(float(t)) for t in te_loads_Nm) > 0
         backlash = ClosedGapBacklash() if loaded else FrictionClosureBacklash()
     else:
-        backlash = PreloadedBacklash() if preload else SmoothBacklash()
+        backlash = PreloadedBacklash() if preload else steps if steps is not None else SmoothBacklash()
     return CampaignModel(
         backlash=backlash,
         temperature=_temperature(effects.get("temperature_dependence", False)),
@@ -82,6 +85,20 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         torque_offset=bool(effects.get("torque_offset")),
         scan=scan,
     )
+
+
+def _gap_steps(value):
+    """``gap_steps``: false, or {steps = N, span_Nm = S} (a gap taken up in N steps spread over
+    ±S N·m of mesh torque; N defaults to 6, S has no default: it is the unit's, not ours)."""
+    if value is False or value is None:
+        return None
+    steps = value.get("steps", 6) if isinstance(value, dict) else None
+    span = value.get("span_Nm") if isinstance(value, dict) else None
+    if not (isinstance(value, dict) and set(value) <= {"steps", "span_Nm"}
+            and isinstance(steps, int) and not isinstance(steps, bool) and steps >= 2
+            and isinstance(span, (int, float)) and not isinstance(span, bool) and span > 0):
+        raise InputError(f"[effects].gap_steps: expected {{steps = N, span_Nm = S}} with N ≥ 2 (default 6) and S > 0 N·m, got {value!r}")
+    return SteppedBacklash(n_steps=steps, span_Nm=float(span))
 
 
 #: Maxwell-slip elements of ``distributed_friction = true``
