@@ -7,6 +7,7 @@ import pytest
 
 import torsionfit.model as m
 from torsionfit import InputError
+from torsionfit.units import ANGLE_UNITS
 
 RATED = 100.0  # N·m
 
@@ -369,3 +370,33 @@ def test_temperature_effect_values():
     for bad in ("yes", {"friction": "no"}, {"viscosity": True}):
         with pytest.raises(InputError, match="temperature_dependence: expected true, false or"):
             m.model_with_effects(["transmission_error"], {"temperature_dependence": bad}, RATED)
+
+
+@pytest.mark.slow
+def test_a_fit_with_gap_steps_recovers_where_the_gap_is_taken_up(tmp_path):
+    """SYNTHETIC friction bench (tests/benches/friction/base.toml: its 380 N·m loop with play ramps
+    to ±30 N·m, 6 N·m Dahl friction) with a 4′ gap taken up mostly at +20 N·m: a fit with the
+    steps declared finds the gap and the steps' shares, the truth inside its 95 % intervals."""
+    from pathlib import Path
+
+    from torsionfit.bench import load_bench, simulate
+    from torsionfit.report import FitOptions, fit_campaign
+
+    effects = {"gap_steps": {"steps": 3, "span_Nm": 20.0}}
+    logits = [-3.0, 1.0]  # shares 0.26 / 0.01 / 0.72 at −20 / 0 / +20 N·m
+    text = (Path(__file__).parent / "benches" / "friction" / "base.toml").read_text()
+    text = text.replace("gap_arcmin = 1.0", "gap_arcmin = 4.0")
+    text = text[: text.index("[[runs]]", text.index("[[runs]]") + 1)]  # the full loop alone: a cheaper fit
+    text = text.replace("[truth]", "[effects]\ngap_steps = {steps = 3, span_Nm = 20.0}\n[truth]\n"
+                        f"gap_step_logits = {logits}", 1)
+    bench = tmp_path / "bench.toml"
+    bench.write_text(text)
+    sim = simulate(load_bench(bench), seed=3)
+    fit = fit_campaign(sim.campaign, FitOptions(sampler="laplace", effects=effects, n_starts=1), seed=0)
+    gap = np.asarray(fit.metric_values["gap"]) / ANGLE_UNITS["arcmin"]
+    lo, hi = np.quantile(gap, [0.025, 0.975])
+    assert lo < 4.0 < hi, (lo, hi)
+    steps = np.asarray(fit.metric_values["gap_step_logits"])
+    for k, truth in enumerate(logits):
+        lo, hi = np.quantile(steps[:, k], [0.025, 0.975])
+        assert lo < truth < hi, (k, lo, hi)
