@@ -33,6 +33,7 @@ the loading compliance are compared with the authors' numbers, read from the dat
 """
 
 import argparse
+import contextlib
 import json
 import re
 import sys
@@ -503,16 +504,26 @@ def _main(args) -> int:
         return 0
     units = args.units or sorted(p.stem for p in EXAMPLES.glob("*.toml"))
     args.output.mkdir(parents=True, exist_ok=True)
-    rows = []
-    if args.jobs > 1:
-        # units in separate processes (one JAX runtime each; the fits are mostly sequential scans)
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
+    with contextlib.ExitStack() as stack:
+        if args.jobs > 1:
+            # units in separate processes (one JAX runtime each; the fits are mostly sequential scans)
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
 
-        with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            pool = stack.enter_context(ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")))
             results = pool.map(_validate_in_float64, units, [args] * len(units))
-    else:
-        results = map(_validate_in_float64, units, [args] * len(units))
+        else:
+            results = map(_validate_in_float64, units, [args] * len(units))
+        # each row is written as it comes (in order), so a run cut short keeps what it has done
+        rows = _write_rows(args, units, results)
+    text = markdown(rows, args.decimate, args.sampler, args.effects, _noise(args), args.laplace_shape)
+    (args.output / "validation.md").write_text(text + "\n")
+    print(text)
+    return 0
+
+
+def _write_rows(args, units, results) -> list[dict]:
+    rows = []
     for unit, row in zip(units, results):
         rows.append(row)
         print(f"{unit}: held-out {row['rmse_held_out_arcsec']:.0f}″ (reference {row['reference']['oos_rest']:.0f}″, "
@@ -521,10 +532,7 @@ def _main(args) -> int:
                                                                        "effects": args.effects, "noise": _noise(args),
                                                                        "laplace_shape": args.laplace_shape, "units": rows},
                                                                       indent=1, default=float))
-    text = markdown(rows, args.decimate, args.sampler, args.effects, _noise(args), args.laplace_shape)
-    (args.output / "validation.md").write_text(text + "\n")
-    print(text)
-    return 0
+    return rows
 
 
 if __name__ == "__main__":
