@@ -106,8 +106,8 @@ class SteppedBacklash(AbstractBacklash):
     fixed by the construction, their shares fitted (the Prandtl–Ishlinskii reference's gap
     columns, with weights that sum to the gap)."""
 
+    span_Nm: float = eqx.field(static=True)  # the unit's, not a number to guess: no default
     n_steps: int = eqx.field(static=True, default=6)
-    span_Nm: float = eqx.field(static=True, default=4.0)
 
     def __check_init__(self):
         if not (isinstance(self.n_steps, int) and self.n_steps >= 2):
