@@ -245,6 +245,10 @@ def test_gap_steps_switch():
     assert (model.backlash.n_steps, model.backlash.span_Nm) == (5, 3.0)
     sizes = {p.name: p.size for p in model.parameters()}
     assert sizes["gap_step_logits"] == 4
+    # by default an odd count, one step at zero torque: the plain centred gap stays a case of it
+    default = m.model_with_effects(("hysteresis",), {"gap_steps": {"span_Nm": 4.0}}, 20.0, fitted=True).backlash
+    assert default.n_steps % 2 == 1 and np.min(np.abs(np.asarray(default.centres_Nm()))) == 0.0
+    assert m.SteppedBacklash(span_Nm=4.0).n_steps == default.n_steps
     for bad in (True, {}, {"steps": 1, "span_Nm": 4.0}, {"steps": 4, "span_Nm": -1.0}, {"steps": 4, "span_Nm": 4, "width": 2}):
         with pytest.raises(InputError, match=r"\[effects\]\.gap_steps: expected \{steps = N, span_Nm = S\}"):
             m.model_with_effects(("hysteresis",), {"gap_steps": bad}, 20.0)

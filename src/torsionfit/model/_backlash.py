@@ -107,7 +107,7 @@ class SteppedBacklash(AbstractBacklash):
     columns, with weights that sum to the gap)."""
 
     span_Nm: float = eqx.field(static=True)  # the unit's, not a number to guess: no default
-    n_steps: int = eqx.field(static=True, default=6)
+    n_steps: int = eqx.field(static=True, default=7)  # odd: a step at zero torque
 
     def __check_init__(self):
         if not (isinstance(self.n_steps, int) and self.n_steps >= 2):
@@ -124,7 +124,9 @@ class SteppedBacklash(AbstractBacklash):
         )
 
     def centres_Nm(self):
-        return jnp.linspace(-self.span_Nm, self.span_Nm, self.n_steps)
+        # exact and symmetric (linspace left the middle of an odd count at −1e−16 N·m)
+        k = jnp.arange(self.n_steps)
+        return self.span_Nm * (2 * k - (self.n_steps - 1)) / (self.n_steps - 1)
 
     def shares(self, params):
         logits = jnp.concatenate([jnp.zeros(1), jnp.atleast_1d(params["gap_step_logits"])])
