@@ -326,3 +326,33 @@ def test_a_fit_with_parts_that_vanish_at_zero_starts_from_the_model_without_them
     effects = {"gap_lag": True, "load_dependent_friction": {"lag": True}, "distributed_friction": True}
     assert _without_nested(effects) == {"load_dependent_friction": True, "distributed_friction": True}
     assert _without_nested({"load_dependent_friction": True, "gap_lag": False}) == {"load_dependent_friction": True, "gap_lag": False}
+
+
+def test_a_fit_with_an_odd_stepped_gap_starts_from_the_plain_gap():
+    """An odd number of gap steps has one at zero torque, so the plain gap is a case of it: the
+    fit first fits without the steps and starts with most of the gap on that middle step; an
+    even number has no such case and fits without that start."""
+    import jax.numpy as jnp
+
+    from torsionfit.model import SmoothBacklash
+    from torsionfit.report._pipeline import _without_nested, gap_on_the_middle_step, prepare_fit
+
+    campaign = simulate(load_bench(BENCH), seed=1).campaign  # SYNTHETIC
+    rated = float(campaign.reducer.rated_torque_Nm)
+    odd = {"gap_steps": {"steps": 7, "span_Nm": 0.05 * rated}, "distributed_friction": True}
+    _, model, problem = prepare_fit(campaign, FitOptions(effects=odd, progress=False))
+    assert _without_nested(odd, model) == {"distributed_friction": True}
+    even = {"gap_steps": {"steps": 6, "span_Nm": 0.05 * rated}}
+    _, even_model, even_problem = prepare_fit(campaign, FitOptions(effects=even, progress=False))
+    assert _without_nested(even, even_model) == even
+    with pytest.raises(ValueError, match="odd number of steps"):
+        gap_on_the_middle_step(even_problem, [r.name for r in campaign.runs], np.asarray(even_problem.prior_mean))
+    names = [r.name for r in campaign.runs]
+    start = gap_on_the_middle_step(problem, names, np.asarray(problem.prior_mean))
+    values = problem.physics_values(jnp.asarray(start[:problem.n_nonlinear]))
+    shares = np.asarray(model.backlash.shares(values))
+    assert shares[3] > 0.9 and shares[3] == shares.max()
+    # the stepped gap at that start is the plain gap with the same β and τ_β, within the 6 % off the middle
+    tau = jnp.linspace(-rated, rated, 401)
+    stepped, plain = np.asarray(model.backlash(values, tau)), np.asarray(SmoothBacklash()(values, tau))
+    assert np.max(np.abs(stepped - plain)) <= 0.07 * float(values["gap"])
