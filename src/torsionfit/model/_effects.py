@@ -1,7 +1,7 @@
 """Switching model extensions on by name (the effects catalog's names, DESIGN §3)."""
 
 from .._errors import InputError
-from ._backlash import ClosedGapBacklash, FrictionClosureBacklash, PreloadedBacklash, SmoothBacklash, SteppedBacklash
+from ._backlash import DEFAULT_GAP_STEPS, ClosedGapBacklash, FrictionClosureBacklash, PreloadedBacklash, SmoothBacklash, SteppedBacklash
 from ._campaign_model import CampaignModel
 from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, ThreeSegmentCompliance
 from ._creep import Creep
@@ -85,13 +85,6 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         torque_offset=bool(effects.get("torque_offset")),
         scan=scan,
     )
-
-
-#: steps of ``gap_steps`` when it does not say: odd, so that one step sits at zero mesh torque.
-#: With six (the Prandtl–Ishlinskii reference's gap columns) the steps sit at ±0.8, ±2.4 and
-#: ±4 N·m of a ±4 N·m span, a single gap crossing at zero is not a case of the model, and on the
-#: measured baseline loops whose crossing is centred the fit got worse in sample and out.
-DEFAULT_GAP_STEPS = 7
 
 
 def _gap_steps(value):

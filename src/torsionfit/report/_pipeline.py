@@ -175,11 +175,9 @@ def _without_nested(effects: dict, model=None) -> dict:
 
 
 def _middle_step(model) -> int | None:
-    """The step at zero torque of a gap taken up in an odd number of steps, else None."""
+    """:attr:`~torsionfit.model.SteppedBacklash.middle_step` of ``model``'s gap, None for any other gap."""
     backlash = getattr(model, "backlash", None)
-    if isinstance(backlash, SteppedBacklash) and backlash.n_steps % 2 == 1:
-        return backlash.n_steps // 2
-    return None
+    return backlash.middle_step if isinstance(backlash, SteppedBacklash) else None
 
 
 def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
