@@ -1,5 +1,6 @@
 """Command line: --help, --version, simulate, metrics, one-line errors with a non-zero exit, the
-same --quiet on every command, progress, Ctrl-C, provenance of the JSON outputs."""
+same --quiet on every command, progress, Ctrl-C, provenance of the JSON outputs (a fit's
+progress and provenance: tests/test_report.py, whose fits compile the same programs)."""
 
 import json
 import logging
@@ -209,20 +210,3 @@ def test_torsionfits_warnings_are_one_line(capsys):
     show(ExtrapolationWarning("'kd': the decision extrapolates the model (speed 0–30 rpm asked)"),
          ExtrapolationWarning, "x.py", 1)
     assert capsys.readouterr().err == "torsionfit accept: warning: 'kd': the decision extrapolates the model (speed 0–30 rpm asked)\n"
-
-
-@pytest.mark.slow  # one laplace fit through the command line (compiling it takes a minute on 2 cores)
-def test_fit_shows_progress_on_stderr_and_records_provenance_in_fit_json(tmp_path, capsys):
-    main(["simulate", str(BENCH), "-o", str(tmp_path / "c"), "-q"])
-    capsys.readouterr()
-    argv = ["fit", str(tmp_path / "c"), "-o", str(tmp_path / "f"), "--sampler", "laplace", "--seed", "7"]
-    assert main(argv) == 0
-    err = capsys.readouterr().err.splitlines()
-    assert err[0].startswith("[fit] read ") and "runs" in err[0]
-    assert any(line.startswith("[fit] MAP from 4 starts") for line in err)
-    assert any(line.startswith("[fit] MAP converged") or line.startswith("[fit] MAP not converged") for line in err)
-    doc = json.loads((tmp_path / "f" / "fit.json").read_text())
-    assert doc["provenance"] == {"torsionfit_version": torsionfit.__version__, "seed": 7,
-                                 "command": command_line(argv)}
-    assert main([*argv, "--quiet"]) == 0
-    assert capsys.readouterr().err == ""

@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import torsionfit
+from torsionfit._provenance import command_line
 from torsionfit.bench import load_bench, simulate
 from torsionfit.cli import EXIT_INPUT_ERROR, main
 from torsionfit.model import model_with_effects
@@ -156,12 +158,21 @@ def test_laplace_fit_recovers_the_bench_truth(laplace_fit):
 
 
 def test_fit_command_laplace(tmp_path, noisy_bench, capsys):
+    """``torsionfit fit``: the summary on stdout, progress on stderr, the provenance in fit.json
+    (``--quiet`` is checked on the split fit below)."""
     assert main(["simulate", str(noisy_bench), "-o", str(tmp_path / "c"), "--seed", "2"]) == 0
-    assert main(["fit", str(tmp_path / "c"), "-o", str(tmp_path / "fit"), "--sampler", "laplace", "--seed", "1"]) == 0
-    out = capsys.readouterr().out
+    capsys.readouterr()
+    argv = ["fit", str(tmp_path / "c"), "-o", str(tmp_path / "fit"), "--sampler", "laplace", "--seed", "1"]
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    out, err = captured.out, captured.err.splitlines()
+    assert err[0].startswith("[fit] read ") and "runs" in err[0]
+    assert any(line.startswith("[fit] MAP from 4 starts") for line in err)
+    assert any(line.startswith("[fit] MAP converged") or line.startswith("[fit] MAP not converged") for line in err)
     assert "stiffness_rated" in out and "SYNTHETIC" in out
     doc = json.loads((tmp_path / "fit" / "fit.json").read_text())
     assert doc["diagnostics"]["sampler"] == "laplace"
+    assert doc["provenance"] == {"torsionfit_version": torsionfit.__version__, "seed": 1, "command": command_line(argv)}
     # the model holds on its own bench: no AR(1) coefficient near the bound, no noise note
     assert doc["diagnostics"]["ar1_misfit_runs"] == {} and "noise_note" not in doc["diagnostics"]
     assert "\nnoise: " not in out
@@ -239,10 +250,11 @@ def test_widened_gaussian_laplace_fit_measures_its_half_axes(laplace_fit):
     assert ("laplace_note" in wide.diagnostics) == bool(far)
 
 
-def test_fit_command_laplace_split(tmp_path, noisy_bench):
-    assert main(["simulate", str(noisy_bench), "-o", str(tmp_path / "c"), "--seed", "2"]) == 0
+def test_fit_command_laplace_split(tmp_path, noisy_bench, capsys):
+    assert main(["simulate", str(noisy_bench), "-o", str(tmp_path / "c"), "--seed", "2", "--quiet"]) == 0
     assert main(["fit", str(tmp_path / "c"), "-o", str(tmp_path / "fit"), "--sampler", "laplace",
-                 "--laplace-shape", "split", "--seed", "1"]) == 0
+                 "--laplace-shape", "split", "--seed", "1", "--quiet"]) == 0
+    assert capsys.readouterr().err == ""  # --quiet: no progress
     diag = json.loads((tmp_path / "fit" / "fit.json").read_text())["diagnostics"]
     assert diag["sampler"] == "laplace" and diag["laplace_shape"] == "split"
     lo, hi = diag["laplace_scale_range"]

@@ -265,17 +265,22 @@ class TorqueOffset(Effect):
 
 # --- friction and the gap: score tests against the fitted model ------------------------------------------
 @eqx.filter_jit
-def _directions(problem, u, alt, extra: dict):
-    """At the fit ``u`` of ``problem``: the prediction per run, its Jacobian with respect to
-    every physics parameter of the fitted model, the prediction of the ``alt`` model at the
-    same values plus ``extra`` and its Jacobian with respect to ``extra``."""
+def _alt_directions(problem, u, alt, extra: dict):
+    """The prediction of the ``alt`` model at the fit ``u`` of ``problem`` plus ``extra``, and
+    its Jacobian with respect to ``extra``."""
     values = problem.full_values(u)
     inputs = problem.corrected_inputs(u[:problem.n_nonlinear])
-    phys = {p.name: values[p.name] for p in problem.physics}
-    pred = problem.model.predict(values, inputs)
-    jac = jax.jacfwd(lambda ph: problem.model.predict({**values, **ph}, inputs))(phys)
     alt_pred = alt.predict({**values, **extra}, inputs)
     alt_jac = jax.jacfwd(lambda ex: alt.predict({**values, **ex}, inputs))(extra)
+    return alt_pred, alt_jac
+
+
+def _directions(ctx: FitContext, alt, extra: dict):
+    """At the fit: the prediction per run, its Jacobian with respect to every physics parameter
+    of the fitted model (once per fit, shared by every candidate), the prediction of the ``alt``
+    model at the same values plus ``extra`` and its Jacobian with respect to ``extra``."""
+    pred, jac = ctx.physics_directions
+    alt_pred, alt_jac = _alt_directions(ctx.map_result.problem, jnp.asarray(ctx.map_result.u), alt, extra)
     return pred, jac, alt_pred, alt_jac
 
 
@@ -301,9 +306,8 @@ def _score_test(ctx: FitContext, name: str, alt, extra: dict, columns, descripti
     gives per run the first-order directions of the extension (N, k); they are tested on the
     hysteresis runs' whitened residuals after projecting out the run's linear terms and the
     fitted model's own physics directions (what a refit of the present parameters would absorb)."""
-    problem = ctx.map_result.problem
     extra = {k: jnp.asarray(v, float) for k, v in extra.items()}
-    pred, jac, alt_pred, alt_jac = _directions(problem, jnp.asarray(ctx.map_result.u), alt, extra)
+    pred, jac, alt_pred, alt_jac = _directions(ctx, alt, extra)
     views, cols = [], []
     for i, run in enumerate(ctx.runs):
         if run.kind != "hysteresis":
@@ -472,7 +476,7 @@ class TemperatureDependence(Effect):
         term = TemperatureTerm(friction=self._friction(ctx))
         alt = eqx.tree_at(lambda mm: mm.temperature, problem.model, term, is_leaf=lambda x: x is None)
         extra = {p.name: jnp.asarray(0.0) for p in term.parameters()}
-        pred, jac, alt_pred, alt_jac = _directions(problem, jnp.asarray(ctx.map_result.u), alt, extra)
+        pred, jac, alt_pred, alt_jac = _directions(ctx, alt, extra)
         views, cols = [], []
         for i, run in enumerate(ctx.runs):
             physics = _columns(jac[i])

@@ -2,8 +2,10 @@
 model that whitens them, and the variables an effect may depend on."""
 
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -70,6 +72,14 @@ class FitContext:
     def te(self) -> tuple[RunView, ...]:
         return tuple(r for r in self.runs if r.kind == "transmission_error")
 
+    @cached_property
+    def physics_directions(self):
+        """(prediction per run, its Jacobian per run with respect to every physics parameter of
+        the fitted model) at the fit — what a refit of the present parameters would absorb. Every
+        score test of one iteration projects it out; computed once per fit (its program is the
+        largest a signature compiles), in float64 as the fit."""
+        return _physics_directions(self.map_result.problem, jnp.asarray(self.map_result.u))
+
 
 @eqx.filter_jit
 def _views(problem: FitProblem, u):
@@ -80,6 +90,17 @@ def _views(problem: FitProblem, u):
     scales = problem.sample_scales(u)
     _, rho = problem.noise_values(u)
     return preds, [c["mesh_torque"] for c in comps], scales, rho, inputs
+
+
+@in_float64
+@eqx.filter_jit
+def _physics_directions(problem: FitProblem, u):
+    values = problem.full_values(u)
+    inputs = problem.corrected_inputs(u[:problem.n_nonlinear])
+    phys = {p.name: values[p.name] for p in problem.physics}
+    pred = problem.model.predict(values, inputs)
+    jac = jax.jacfwd(lambda ph: problem.model.predict({**values, **ph}, inputs))(phys)
+    return pred, jac
 
 
 def variogram_noise(residual: np.ndarray) -> tuple[float, float]:
