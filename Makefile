@@ -16,8 +16,8 @@ run: $(BIN)/.installed
 	$(BIN)/python scripts/main_job.py -o $(OUT)
 
 # the threaded batch-sampler tests and the NUTS tests run in processes of their own (they compile
-# many programs; tests/conftest.py drops compiled programs after every file, as a long-lived xdist
-# worker otherwise runs out of memory mappings (vm.max_map_count) inside XLA). Every test process
+# many programs; tests/conftest.py drops compiled programs when a process holds many, as a long-lived
+# xdist worker otherwise runs out of memory mappings (vm.max_map_count) inside XLA). Every test process
 # computes on one core (tests/conftest.py), so the NUTS file runs beside the two-worker pool
 # rather than before it: its log is printed when both are done, and either failing fails the target
 test: $(BIN)/.installed

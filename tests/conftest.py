@@ -54,20 +54,13 @@ else:
     enable_compilation_cache(TEST_CACHE_DIR)  # JAX may have been imported before this file
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _release_compiled_programs():
-    """Drop JAX's compiled programs after each test file. Every XLA CPU executable holds a few
-    memory mappings until its jit cache entry goes; a long-lived xdist worker compiling for
-    dozens of files reached ~30 000 of Linux's default 65 530 (vm.max_map_count), and workers
-    that passed it aborted inside XLA (serialising or compiling a program, late in clean-clone
-    runs, never when a file ran alone). The disk cache makes a later file's recompiles cheap."""
-    yield
-    jax.clear_caches()
-    gc.collect()
-
-
-#: within one file (test_diagnose.py compiles thousands of programs) the count is checked after
-#: every test and the programs dropped above this many mappings
+#: Every XLA CPU executable holds a few memory mappings until its jit cache entry goes; a
+#: long-lived xdist worker compiling for dozens of files reached ~30 000 of Linux's default 65 530
+#: (vm.max_map_count), and workers that passed it aborted inside XLA (serialising or compiling a
+#: program, late in clean-clone runs, never when a file ran alone). So the count is checked after
+#: every test and the compiled programs dropped above this many mappings (the disk cache makes
+#: the recompiles cheap). Dropping them after every file as well cost 5 % of the suite's time:
+#: the next file traced again and reloaded the very programs it shares with the one before.
 MAX_MAPPINGS = 20_000
 
 
