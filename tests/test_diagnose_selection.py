@@ -1,6 +1,8 @@
 """Model selection for closing the loop (fast): the drift shapes, the linearised LOO against
 brute-force leave-one-out, and the rule that picks the criterion."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -184,3 +186,35 @@ def test_noise_estimate_is_the_residuals_not_the_torque_noise_model():
     # a residual of steps: the AR(1) extrapolation overshoots; the estimate stops at the residual
     steps = SimpleNamespace(scale=np.full(n, 2.0 * arcsec), rho=0.95, eiv_var=np.zeros(n), residual=residual)
     assert noise_rmse_arcsec(SimpleNamespace(runs=[steps])) == pytest.approx(np.sqrt(np.mean(residual**2)) / arcsec, rel=1e-9)
+
+
+def test_a_residual_that_moves_in_jumps_gets_a_note_and_noise_does_not():
+    """``jump_note``: a residual of encoder-level noise plus sparse steps (stick-slip, as the
+    measured loops' block means show: increments' median ~2 encoder steps, their 99th percentile
+    ~40×) is named, with both noise readings; white noise, AR(1) noise and noise on a smooth
+    misfit (what a missing catalog effect leaves) are not."""
+    from types import SimpleNamespace
+
+    from torsionfit.diagnose._loop import jump_note
+    from torsionfit.units import ANGLE_UNITS
+
+    arcsec = ANGLE_UNITS["arcsec"]
+    rng = np.random.default_rng(11)
+    n = 2000
+    noise = rng.normal(0.0, 40.0 * arcsec, n)
+    ar1 = np.zeros(n)
+    for i in range(1, n):
+        ar1[i] = 0.9 * ar1[i - 1] + rng.normal(0.0, 40.0 * arcsec)
+    smooth = 800.0 * arcsec * np.sin(np.linspace(0.0, 6 * np.pi, n))
+    steps = np.cumsum(np.where(rng.random(n) < 0.03, rng.normal(0.0, 1500.0 * arcsec, n), 0.0))
+    steps -= np.mean(steps)
+
+    def run(name, residual):
+        return SimpleNamespace(name=name, residual=residual)
+
+    assert jump_note([run("white", noise), run("ar1", ar1), run("misfit", smooth + noise)]) is None
+    note = jump_note([run("clean", noise), run("stick-slip", steps + noise)])
+    assert note is not None and "clean" not in note, note
+    robust, variogram = map(float, re.search(r"stick-slip ([0-9.]+)″ against ([0-9.]+)″", note).groups())
+    assert 35.0 < robust < 50.0 and variogram > 2 * robust, note  # the noise is 40″ (× √2 in the increments)
+    assert "jumps" in note and "\n" not in note

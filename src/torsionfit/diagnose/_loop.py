@@ -21,7 +21,7 @@ from ..io import Campaign
 from ..model import model_with_effects
 from ..units import ANGLE_UNITS
 from ._catalog import CATALOG, Effect
-from ._context import FitContext, fit_context
+from ._context import FitContext, fit_context, variogram_noise
 from ._selection import Comparison, Score, compare, score
 from ._signature import Evidence, regression_evidence
 
@@ -164,6 +164,9 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
         added.add(accepted.effect)
     noise = noise_rmse_arcsec(current.context)
     findings, notes = judge_leftovers(_leftovers(current.context, options, added), current.rmse_arcsec, noise, options)
+    jumps = jump_note(current.context.runs)
+    if jumps:
+        notes.append(jumps)
     description = "; ".join(ev.description for ev in findings)
     return Diagnosis(base=base, final=current, steps=steps, rejected=rejected, signatures=history,
                      unexplained=bool(findings), unexplained_description=description, leftovers=findings,
@@ -186,6 +189,36 @@ def judge_leftovers(leftovers: list, rmse_arcsec: float, noise_arcsec: float, op
                          f"{rmse_arcsec:.3g}″ against the noise estimate {noise_arcsec:.3g}″ (a finding needs "
                          f"> {100 * options.finding_min_excess:g} % above)")
     return findings, notes
+
+
+#: a run's residual "moves in jumps" when the robust sd of its increments is below this share of
+#: the variogram's innovation sd (about 1 for noise, white or AR(1), with or without a smooth misfit)
+JUMP_RATIO = 0.5
+
+
+def jump_note(runs) -> str | None:
+    """A note when residuals move in jumps (stick-slip steps, a gap crossed between samples):
+    the sample-to-sample noise read robustly (median absolute increment) is far below the
+    innovation sd the short-lag variogram reads, because the variogram counts the jumps as
+    noise — and with it the noise estimate and every signature's test, which lose power. None
+    when no run's residual does so. ``runs``: objects with ``name`` and ``residual`` (rad)."""
+    jumpy = []
+    for r in runs:
+        e = np.asarray(r.residual, float)
+        if e.size < 8:
+            continue
+        d = np.diff(e)
+        robust = 1.4826 * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2.0)
+        sd, _ = variogram_noise(e)
+        if sd > 0 and robust < JUMP_RATIO * sd:
+            jumpy.append((r.name, robust / ARCSEC, sd / ARCSEC))
+    if not jumpy:
+        return None
+    each = ", ".join(f"{name} {robust:.3g}″ against {sd:.3g}″" for name, robust, sd in jumpy)
+    return (f"the residual moves in jumps (stick-slip steps or a gap crossed between samples): its sample-to-sample "
+            f"noise read from the median increment is far below the variogram's innovation sd ({each}); the jumps "
+            f"count as noise in the noise estimate and in every signature's test, which are weaker for it, and no "
+            f"catalog effect models them")
 
 
 def noise_rmse_arcsec(ctx: FitContext) -> float:
