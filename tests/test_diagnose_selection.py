@@ -191,8 +191,8 @@ def test_noise_estimate_is_the_residuals_not_the_torque_noise_model():
 def test_a_residual_that_moves_in_jumps_gets_a_note_and_noise_does_not():
     """``jump_note``: a residual of encoder-level noise plus sparse steps (stick-slip, as the
     measured loops' block means show: increments' median ~2 encoder steps, their 99th percentile
-    ~40×) is named, with both noise readings; white noise, AR(1) noise and noise on a smooth
-    misfit (what a missing catalog effect leaves) are not."""
+    ~40×) is named, with both noise readings; white noise, AR(1) noise, noise on a smooth
+    misfit (what a missing catalog effect leaves) and noise below the encoder step are not."""
     from types import SimpleNamespace
 
     from torsionfit.diagnose._loop import jump_note
@@ -209,10 +209,15 @@ def test_a_residual_that_moves_in_jumps_gets_a_note_and_noise_does_not():
     steps = np.cumsum(np.where(rng.random(n) < 0.03, rng.normal(0.0, 1500.0 * arcsec, n), 0.0))
     steps -= np.mean(steps)
 
-    def run(name, residual):
-        return SimpleNamespace(name=name, residual=residual)
+    def run(name, residual, step_arcsec=1.0):
+        return SimpleNamespace(name=name, residual=residual, floor=step_arcsec * arcsec / np.sqrt(12.0))
 
     assert jump_note([run("white", noise), run("ar1", ar1), run("misfit", smooth + noise)]) is None
+    # noise below the encoder step: the median increment is 0, the quantisation's steps are no jumps
+    step = 20.0 * arcsec
+    quantised = step * np.round(rng.normal(0.0, 0.3 * step, n) / step)
+    assert np.median(np.abs(np.diff(quantised))) == 0.0
+    assert jump_note([run("below the step", quantised, step_arcsec=20.0)]) is None
     note = jump_note([run("clean", noise), run("stick-slip", steps + noise)])
     assert note is not None and "clean" not in note, note
     robust, variogram = map(float, re.search(r"stick-slip ([0-9.]+)″ against ([0-9.]+)″", note).groups())

@@ -201,14 +201,16 @@ def jump_note(runs) -> str | None:
     the sample-to-sample noise read robustly (median absolute increment) is far below the
     innovation sd the short-lag variogram reads, because the variogram counts the jumps as
     noise — and with it the noise estimate and every signature's test, which lose power. None
-    when no run's residual does so. ``runs``: objects with ``name`` and ``residual`` (rad)."""
+    when no run's residual does so. ``runs``: objects with ``name``, ``residual`` (rad) and
+    ``floor``, the encoder's quantisation floor (rad): below the encoder step the median
+    increment is 0 and the occasional step of the quantisation is no jump."""
     jumpy = []
     for r in runs:
         e = np.asarray(r.residual, float)
         if e.size < 8:
             continue
         d = np.diff(e)
-        robust = 1.4826 * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2.0)
+        robust = max(1.4826 * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2.0), float(r.floor))
         sd, _ = variogram_noise(e)
         if sd > 0 and robust < JUMP_RATIO * sd:
             jumpy.append((r.name, robust / ARCSEC, sd / ARCSEC))
