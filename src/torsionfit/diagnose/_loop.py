@@ -13,6 +13,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.stats import median_abs_deviation
 
 from .._x64 import in_float64
 from ..fit import NoiseOptions, build_problem, fit_map
@@ -211,7 +212,7 @@ def jump_note(runs) -> str | None:
         if e.size < 8:
             continue
         d = np.diff(e)
-        robust = max(1.4826 * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2.0), float(r.floor))
+        robust = max(float(median_abs_deviation(d, scale="normal")) / np.sqrt(2.0), float(r.floor))
         sd, _ = variogram_noise(e)
         if sd > 0 and robust < JUMP_RATIO * sd:
             jumpy.append((r.name, robust / ARCSEC, sd / ARCSEC))
