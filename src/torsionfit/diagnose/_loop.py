@@ -196,6 +196,8 @@ def judge_leftovers(leftovers: list, rmse_arcsec: float, noise_arcsec: float, op
 #: share of the variogram's innovation sd: 1 for white noise, 1/√(1 + ρ) ≈ 0.73 for AR(1) noise at
 #: ρ = 0.9, about the same with a smooth misfit on top; 0.14 on a measured loop's block means
 JUMP_RATIO = 0.5
+#: how the note on such a residual begins (the residual figure's title points to it)
+JUMPS = "the residual moves in jumps"
 
 
 def jump_note(runs) -> str | None:
@@ -219,7 +221,7 @@ def jump_note(runs) -> str | None:
     if not jumpy:
         return None
     each = ", ".join(f"{name} {robust:.3g}″ against {sd:.3g}″" for name, robust, sd in jumpy)
-    return (f"the residual moves in jumps (stick-slip steps or a gap crossed between samples): its sample-to-sample "
+    return (f"{JUMPS} (stick-slip steps or a gap crossed between samples): its sample-to-sample "
             f"noise read from the median increment is far below the variogram's innovation sd ({each}); the jumps "
             f"count as noise in the noise estimate and in every signature's test, which are weaker for it, and no "
             f"catalog effect models them")

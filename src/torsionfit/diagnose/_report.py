@@ -7,7 +7,7 @@ import numpy as np
 
 from .._provenance import provenance
 from ..units import ANGLE_UNITS
-from ._loop import Diagnosis
+from ._loop import JUMPS, Diagnosis
 
 ARCSEC = ANGLE_UNITS["arcsec"]
 
@@ -205,7 +205,9 @@ def write_figures(d: Diagnosis, campaign, folder) -> list:
         paths.append(path)
     fig, axes = plt.subplots(n, 1, figsize=(8, 1.6 * n + 1), squeeze=False, constrained_layout=True)
     _residual_panels(axes[:, 0], d.final, "final model" + (f" (+ {', '.join(s.effect for s in d.steps)})" if d.steps else " (base)"))
-    fig.suptitle(("unexplained: " + d.unexplained_description if d.unexplained else _NOTHING_LEFT)[:160]
+    # "nothing left" over a residual of jumps would read as a good fit: the title says the noise is the jumps
+    jumps = "; " + JUMPS + ", counted as noise (see the notes)" if any(n.startswith(JUMPS) for n in d.notes) else ""
+    fig.suptitle(("unexplained: " + d.unexplained_description if d.unexplained else _NOTHING_LEFT + jumps)[:160]
                  + f"\n{source}", fontsize=7)
     path = folder / "final-residuals.png"
     fig.savefig(path, dpi=110)
