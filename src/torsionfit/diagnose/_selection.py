@@ -123,9 +123,8 @@ def compare(before: Score, after: Score) -> Comparison:
 @eqx.filter_jit
 def _whitened(problem, u):
     """At u: whitened residuals, per-sample scales, ρ per run and the whitened design per run."""
-    _, rho = problem.noise_values(u)
-    white, _, _, scales = problem.profile(u, return_scales=True)
-    return white, scales, rho, [problem.whiten(x, scales[r], rho[r]) for r, x in enumerate(problem.design)]
+    white, _, _, scales, rho = problem.profile_all(u)
+    return problem.split_runs(white), problem.split_runs(scales), rho, problem.split_runs(problem.whitened_design(scales, rho))
 
 
 def leverage(jac: np.ndarray, n_data: int, design: np.ndarray | None) -> np.ndarray:

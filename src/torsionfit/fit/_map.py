@@ -57,8 +57,8 @@ def _map_jit(fn):
 
 
 def _weighted_residuals(u_phys, problem: FitProblem, u_noise, data_weight):
-    white, _, _ = problem.profile(jnp.concatenate([u_phys, u_noise]))
-    return jnp.concatenate([data_weight * w for w in white] + [problem.prior_residuals(u_phys)])
+    white = problem.profile_all(jnp.concatenate([u_phys, u_noise]))[0]
+    return jnp.concatenate([data_weight * white, problem.prior_residuals(u_phys)])
 
 
 def _lm_residuals(u_phys, args):
@@ -92,27 +92,32 @@ def log_density(problem: FitProblem, u):
 def _noise_update(problem: FitProblem, u):
     """Closed-form noise update at u: ρ_r = the conditional MLE Σ e_t e_{t−1} / Σ e_{t−1}² of the
     residuals (AR(1) runs), σ_r² = mean innovation², s_r² = σ_r² − floor_r² (kept positive)."""
-    log_s, logits = [], []
-    for r, e in enumerate(problem.residuals(u)):
-        rho = 0.0
-        if problem.ar1[r]:
-            # not demeaned: the likelihood's AR(1) has mean zero, and a run's constant misfit (TE
-            # runs sharing one zero offset) stays in its innovations — with ρ of the demeaned
-            # residual (≈ 0 for a level plus white noise) that level counted as white noise, and a
-            # diagnose refit that removed a periodic error scored below the model without it
-            rho = jnp.clip(jnp.dot(e[1:], e[:-1]) / jnp.maximum(jnp.dot(e[:-1], e[:-1]), 1e-300), 0.01, _RHO_CAP)
-            logits.append(jnp.log(rho) - jnp.log(RHO_MAX - rho))
-        innov2 = (e[1:] - rho * e[:-1]) ** 2
-        floor2 = problem.floors[r] ** 2
-        if problem.noise_shape is not None:
-            # σ_i² = (s w_i)² + floor²: s² from the innovations above the floor, each over w_i²
-            w2 = problem.noise_shape[r][1:] ** 2
-            var_s = jnp.mean(jnp.maximum(innov2 - floor2, 0.0) / w2)
-            log_s.append(0.5 * jnp.log(jnp.maximum(var_s, 1e-4 * jnp.maximum(floor2, 1e-26))))
-            continue
-        var = jnp.mean(innov2)
-        log_s.append(0.5 * jnp.log(jnp.maximum(var - floor2, jnp.maximum(1e-4 * jnp.maximum(floor2, var), 1e-30))))
-    return jnp.stack(log_s + logits)
+    # all runs at once (problem.sum_runs): sums over each run's pairs (e_{t-1}, e_t), t ≥ 1
+    e = jnp.concatenate(problem.residuals(u))
+    later = ~problem.first_samples()
+    prev = jnp.where(later, jnp.concatenate([jnp.zeros(1, e.dtype), e[:-1]]), 0.0)
+    ar1 = np.asarray(problem.ar1)
+    rho = jnp.zeros(problem.n_runs, e.dtype)
+    if ar1.any():
+        # not demeaned: the likelihood's AR(1) has mean zero, and a run's constant misfit (TE
+        # runs sharing one zero offset) stays in its innovations — with ρ of the demeaned
+        # residual (≈ 0 for a level plus white noise) that level counted as white noise, and a
+        # diagnose refit that removed a periodic error scored below the model without it
+        fit = jnp.clip(problem.sum_runs(e * prev) / jnp.maximum(problem.sum_runs(prev**2), 1e-300), 0.01, _RHO_CAP)
+        rho = jnp.where(ar1, fit, 0.0)
+    innov2 = jnp.where(later, (e - problem.per_sample(rho) * prev) ** 2, 0.0)
+    n_pairs = np.asarray(problem.run_lengths) - 1.0
+    floor2 = problem.floors**2
+    if problem.noise_shape is not None:
+        # σ_i² = (s w_i)² + floor²: s² from the innovations above the floor, each over w_i²
+        w2 = jnp.concatenate(problem.noise_shape) ** 2
+        var_s = problem.sum_runs(jnp.maximum(innov2 - problem.per_sample(floor2), 0.0) / w2 * later) / n_pairs
+        log_s = 0.5 * jnp.log(jnp.maximum(var_s, 1e-4 * jnp.maximum(floor2, 1e-26)))
+    else:
+        var = problem.sum_runs(innov2) / n_pairs
+        log_s = 0.5 * jnp.log(jnp.maximum(var - floor2, jnp.maximum(1e-4 * jnp.maximum(floor2, var), 1e-30)))
+    rho_ar1 = rho[np.flatnonzero(ar1)]
+    return jnp.concatenate([log_s, jnp.log(rho_ar1) - jnp.log(RHO_MAX - rho_ar1)])
 
 
 def noise_pass(problem: FitProblem, u_phys, u_noise, solver, max_steps: int):

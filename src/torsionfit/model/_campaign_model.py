@@ -16,6 +16,7 @@ This split is the paper's Eq. (3): θ_out = θ_e(τ) + θ_f(τ, τ̇) + θ_g(τ)
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from ._backlash import AbstractBacklash, SmoothBacklash
 from ._compliance import AbstractCompliance, LinearCompliance
@@ -237,5 +238,30 @@ class CampaignModel(eqx.Module):
     def predict(self, params, inputs) -> list:
         """Predicted measured angle (rad) per run: output twist or TE (the components' ``total``
         to rounding)."""
-        return self._each_run(inputs, lambda d, i, h: self.hysteresis_total(params, d, i, h),
-                              lambda d, i: self.te_components(params, d, i)["total"])
+        te_index = [i for i, k in enumerate(self.run_kinds) if k == "transmission_error"]
+        if len(te_index) < 2 or self.drift:  # drift reads each run's own time origin and span
+            return self._each_run(inputs, lambda d, i, h: self.hysteresis_total(params, d, i, h),
+                                  lambda d, i: self.te_components(params, d, i)["total"])
+        out = self._each_run(inputs, lambda d, i, h: self.hysteresis_total(params, d, i, h), lambda d, i: None)
+        te = [inputs[i] for i in te_index]
+        total = self.te_components(params, _concatenate_te(te), -1)["total"]
+        for i, part in zip(te_index, jnp.split(total, np.cumsum([d.output_angle_rad.shape[0] for d in te])[:-1])):
+            out[i] = part
+        return out
+
+
+def _concatenate_te(runs) -> TEInput:
+    """Several TE runs as one: samples concatenated, each run's scalars (load, speed, direction,
+    zero group, temperature) spread over its samples. A TE run's model is a function of each
+    sample and its run's scalars alone, so every TE run of a campaign evaluates as one — one
+    program of a fixed size, where one per run made XLA's compile time grow with the runs."""
+    lengths = np.array([d.output_angle_rad.shape[0] for d in runs])
+
+    def spread(field):
+        return jnp.repeat(jnp.stack([jnp.asarray(getattr(d, field)) for d in runs]), lengths,
+                          total_repeat_length=int(lengths.sum()))
+
+    return TEInput(
+        jnp.concatenate([d.output_angle_rad for d in runs]), jnp.concatenate([d.time_s for d in runs]),
+        spread("torque_Nm"), spread("speed_rad_s"), spread("direction"), spread("zero_group"),
+        spread("temperature_delta_K"))

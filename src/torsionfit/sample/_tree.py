@@ -98,18 +98,18 @@ def _joint_draw(problem, u, key, sample_linear: bool):
     the residuals are. ``sample_linear`` draws β from it — the joint posterior of (u, β);
     otherwise β = β̂(u), ``problem.full_values``'s profile. Returns (β, whitened residuals per
     run, per-sample scales per run, ρ per run)."""
-    _, rho = problem.noise_values(u)
-    white, beta, _, scales = problem.profile(u, return_scales=True)
+    white, beta, _, scales, rho = problem.profile_all(u)
     if sample_linear and problem.n_linear:
-        wx = [problem.whiten(x, scales[r], rho[r]) for r, x in enumerate(problem.design)]
-        a = sum(w.T @ w for w in wx)
+        wx = problem.whitened_design(scales, rho)
+        a = wx.T @ wx
         # the same ridge as ``FitProblem.profile`` (plus a floor for an all-zero design)
         a = a + (1e-10 * jnp.trace(a) / problem.n_linear + 1e-300) * jnp.eye(problem.n_linear)
         chol = jnp.linalg.cholesky(a)
         z = jax.random.normal(key, (problem.n_linear,), dtype=beta.dtype)
         delta = jax.scipy.linalg.solve_triangular(chol.T, z, lower=False)  # cov L⁻ᵀL⁻¹ = A⁻¹
         beta = beta + delta
-        white = [v - w @ delta for v, w in zip(white, wx)]
+        white = white - wx @ delta
+    white, scales = problem.split_runs(white), problem.split_runs(scales)
     return beta, white, scales, rho
 
 
