@@ -1,5 +1,7 @@
 """Forward model: gradients, scan equivalence, physics checks (DESIGN §1)."""
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -92,6 +94,24 @@ def test_predict_is_the_components_total():
     for pred, comps in zip(model.predict(params, inputs), model.components(params, inputs)):
         scale = np.max(np.abs(comps["total"]))
         np.testing.assert_allclose(pred, comps["total"], rtol=0, atol=1e-13 * scale)
+
+
+def test_te_runs_evaluated_together_equal_each_alone():
+    """predict evaluates every TE run of a campaign in one call (their loads, speeds, directions,
+    zero groups and temperatures spread over their samples): the same angles as run by run."""
+    model, inputs, params = full_model_and_data()
+    model = dataclasses.replace(model, drift=False, te_zero_groups=2,
+                                run_kinds=model.run_kinds + ("transmission_error",))
+    phi = np.linspace(0, 3 * np.pi, 150)
+    inputs = inputs + [m.te_input(phi, 40.0, 2.0, -1, zero_group=1, temperature_delta_K=-5.0)]
+    params = {k: v for k, v in params.items() if k != "drift"} | {"te_offset": jnp.array([-2e-5, 3e-5])}
+    together = model.predict(params, inputs)
+    alone = [model.te_components(params, d, i)["total"] if k == "transmission_error" else None
+             for i, (k, d) in enumerate(zip(model.run_kinds, inputs))]
+    assert [len(t) for t in together] == [len(d.time_s) for d in inputs]
+    for t, a in zip(together, alone):
+        if a is not None:
+            np.testing.assert_allclose(t, a, rtol=0, atol=1e-15 * float(np.max(np.abs(a))))
 
 
 @pytest.mark.parametrize("name", [

@@ -321,8 +321,7 @@ class FitProblem(eqx.Module):
 
     def per_sample(self, per_run):
         """(R,) per-run values → (N,) per-sample values."""
-        lengths = np.asarray(self.run_lengths)
-        return jnp.repeat(per_run, lengths, total_repeat_length=int(lengths.sum()))
+        return jnp.concatenate([jnp.broadcast_to(per_run[r], (n,)) for r, n in enumerate(self.run_lengths)])
 
     def sum_runs(self, x):
         """(N,) per-sample values of all runs → (R,) their sum over each run."""
@@ -331,8 +330,7 @@ class FitProblem(eqx.Module):
 
     def first_samples(self):
         """(N,) True at the first sample of each run (where AR(1) whitening restarts)."""
-        starts = np.concatenate([[0], np.cumsum(self.run_lengths)[:-1]])
-        return jnp.zeros(sum(self.run_lengths), dtype=bool).at[starts].set(True)
+        return jnp.concatenate([jnp.arange(n) == 0 for n in self.run_lengths])
 
     @staticmethod
     def whiten(x, scale, rho):

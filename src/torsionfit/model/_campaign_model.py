@@ -258,8 +258,7 @@ def _concatenate_te(runs) -> TEInput:
     lengths = np.array([d.output_angle_rad.shape[0] for d in runs])
 
     def spread(field):
-        return jnp.repeat(jnp.stack([jnp.asarray(getattr(d, field)) for d in runs]), lengths,
-                          total_repeat_length=int(lengths.sum()))
+        return jnp.concatenate([jnp.broadcast_to(getattr(d, field), (n,)) for d, n in zip(runs, lengths)])
 
     return TEInput(
         jnp.concatenate([d.output_angle_rad for d in runs]), jnp.concatenate([d.time_s for d in runs]),
