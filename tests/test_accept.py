@@ -408,6 +408,7 @@ POPULATION_LIMIT_QUANTILE = 0.15
 
 
 @pytest.mark.slow
+@pytest.mark.runtime_bound
 def test_guarded_acceptance_over_200_units_near_the_limits(bench):
     """200 SYNTHETIC units, truth varied around the limits (seeded), each decided with p_accept
     = 0.95 on stiffness_elastic ≥, lost_motion ≤ and K_d ≥ over 300–380 N·m × 1–10 rpm: of the

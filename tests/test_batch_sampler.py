@@ -15,6 +15,9 @@ from torsionfit.bench import load_bench, simulate
 from torsionfit.report import prepare_fit
 from torsionfit.sample import ConvergenceWarning, run_sampler
 
+# sampling runs its programs far longer than it compiles them (tests/conftest.py)
+pytestmark = pytest.mark.runtime_bound
+
 BENCH = Path(__file__).parent / "benches" / "rv_small_base.toml"
 SHORT = {"check_every": 20, "progress": False}
 

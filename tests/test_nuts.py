@@ -24,6 +24,9 @@ from torsionfit.sample._nuts import _mode_and_curvature
 
 from test_sample import GaussianProblem, _toy  # the Gaussian toy with a known posterior
 
+# sampling runs its programs far longer than it compiles them (tests/conftest.py)
+pytestmark = pytest.mark.runtime_bound
+
 BENCHES = Path(__file__).parent / "benches"
 FAST = dict(n_warmup=300, initial_draws=300, max_draws=600, progress=False)
 

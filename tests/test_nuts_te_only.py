@@ -13,6 +13,9 @@ import torsionfit  # noqa: F401  (enables float64 in JAX)
 from torsionfit.report import FitOptions
 from torsionfit.sample import Coordinates, run_nuts
 
+# sampling runs its programs far longer than it compiles them (tests/conftest.py)
+pytestmark = pytest.mark.runtime_bound
+
 BENCHES = Path(__file__).parent / "benches"
 
 

@@ -247,6 +247,7 @@ def test_paper_fit_falls_back_to_laplace_when_the_sampler_does_not_converge_with
 
 
 @pytest.mark.slow
+@pytest.mark.runtime_bound
 def test_paper_fit_uses_the_sampled_posterior_when_it_converges(tmp_path):
     """NUTS with the paper's budget converges on the tiny SYNTHETIC campaign: its draws are kept."""
     from torsionfit.paper import FULL, fit_with_fallback, posterior_line

@@ -490,6 +490,7 @@ def test_linear_parameters_drawn_from_their_conditional_posterior(small):
 
 
 @pytest.mark.slow
+@pytest.mark.runtime_bound
 def test_real_campaign_converges_near_the_map(small):
     """MAP → Laplace start → emcee to convergence on the small campaign: the posterior of the
     physics is centred on the MAP and about as wide as the Laplace approximation."""
