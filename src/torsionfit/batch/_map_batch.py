@@ -39,8 +39,9 @@ def _pass(problems, u_phys, u_noise, solver, max_steps: int):
     return eqx.filter_vmap(one_unit, in_axes=(eqx.if_array(0), 0, 0))(problems, u_phys, u_noise)
 
 
-#: per unit at u (units, dim): physics Jacobian, (σ_r, ρ_r) and every parameter value
-_laplace_parts = eqx.filter_jit(eqx.filter_vmap(laplace_parts))
+#: per unit at u (units, dim): physics Jacobian, (σ_r, ρ_r) and every parameter value (not the
+#: whitened residuals and design, units × samples each, which the batch does not read)
+_laplace_parts = eqx.filter_jit(eqx.filter_vmap(lambda problem, u: laplace_parts(problem, u)[:4]))
 
 
 def _take(tree, *index):

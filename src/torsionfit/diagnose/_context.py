@@ -1,7 +1,7 @@
 """What a residual signature looks at: per run, the residuals of a fitted model, the noise
 model that whitens them, and the variables an effect may depend on."""
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import equinox as eqx
@@ -72,17 +72,27 @@ class FitContext:
     def te(self) -> tuple[RunView, ...]:
         return tuple(r for r in self.runs if r.kind == "transmission_error")
 
+    #: physics_directions when fit_context computed them with the views (campaigns with
+    #: hysteresis runs, whose friction and gap score tests read them)
+    computed_directions: tuple | None = field(default=None, repr=False)
+
     @cached_property
     def physics_directions(self):
         """(prediction per run, its Jacobian per run with respect to every physics parameter of
         the fitted model) at the fit — what a refit of the present parameters would absorb. Every
         score test of one iteration projects it out; computed once per fit (its program is the
         largest a signature compiles), in float64 as the fit."""
+        if self.computed_directions is not None:
+            return self.computed_directions
         return _physics_directions(self.map_result.problem, jnp.asarray(self.map_result.u))
 
 
 @eqx.filter_jit
 def _views(problem: FitProblem, u):
+    return _views_of(problem, u)
+
+
+def _views_of(problem: FitProblem, u):
     values = problem.full_values(u)
     inputs = problem.corrected_inputs(u)
     comps = problem.model.components(values, inputs)
@@ -92,9 +102,20 @@ def _views(problem: FitProblem, u):
     return preds, [c["mesh_torque"] for c in comps], scales, rho, inputs
 
 
+@eqx.filter_jit
+def _views_and_directions(problem: FitProblem, u):
+    """:func:`_views` and :func:`_physics_directions` in one program: one model evaluation and
+    profile for both, where two programs compiled them twice for every fit diagnosed."""
+    return _views_of(problem, u), _directions_of(problem, u)
+
+
 @in_float64
 @eqx.filter_jit
 def _physics_directions(problem: FitProblem, u):
+    return _directions_of(problem, u)
+
+
+def _directions_of(problem: FitProblem, u):
     values = problem.full_values(u)
     inputs = problem.corrected_inputs(u[:problem.n_nonlinear])
     phys = {p.name: values[p.name] for p in problem.physics}
@@ -125,7 +146,11 @@ def variogram_noise(residual: np.ndarray) -> tuple[float, float]:
 def fit_context(campaign: Campaign, effects: dict, map_result: MapResult) -> FitContext:
     problem = map_result.problem
     u = jnp.asarray(map_result.u)
-    preds, mesh, scales, rho, inputs = _views(problem, u)
+    directions = None
+    if any(run.kind == "hysteresis" for run in campaign.runs):
+        (preds, mesh, scales, rho, inputs), directions = _views_and_directions(problem, u)
+    else:
+        preds, mesh, scales, rho, inputs = _views(problem, u)
     sigma_fit, _ = problem.noise_values(u)
     views = []
     noise = []
@@ -164,4 +189,4 @@ def fit_context(campaign: Campaign, effects: dict, map_result: MapResult) -> Fit
                 eiv_var=noise[i][2], floor=noise[i][3],
             ))
     return FitContext(campaign=campaign, effects=dict(effects), map_result=map_result, runs=tuple(views),
-                      rated_torque_Nm=campaign.reducer.rated_torque_Nm)
+                      rated_torque_Nm=campaign.reducer.rated_torque_Nm, computed_directions=directions)

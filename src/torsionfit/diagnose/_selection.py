@@ -120,13 +120,6 @@ def compare(before: Score, after: Score) -> Comparison:
 
 
 # --------------------------------------------------------------------------- linearised LOO
-@eqx.filter_jit
-def _whitened(problem, u):
-    """At u: whitened residuals, per-sample scales, ρ per run and the whitened design per run."""
-    white, _, _, scales, rho = problem.profile_all(u)
-    return problem.split_runs(white), problem.split_runs(scales), rho, problem.split_runs(problem.whitened_design(scales, rho))
-
-
 def leverage(jac: np.ndarray, n_data: int, design: np.ndarray | None) -> np.ndarray:
     """Leverage h_i of each of the first ``n_data`` rows of a linearised model: ``jac`` the
     Jacobian of the profiled whitened residuals in the non-linear parameters (data rows, then
@@ -151,12 +144,11 @@ def linearised_loo(problem, u) -> np.ndarray:
     For a linear model with Gaussian noise of known scale this is exact leave-one-out."""
     from ..fit._map import _laplace_parts  # compiled by the MAP fit for this problem's shape
 
-    u = jnp.asarray(u)
-    white, scales, rho, wx = _whitened(problem, u)
-    jac = np.asarray(_laplace_parts(problem, u)[0])
-    white = [np.asarray(w) for w in white]
+    jac, _, rho, _, (white, scales, wx) = _laplace_parts(problem, jnp.asarray(u))
+    jac = np.asarray(jac)
+    white, scales = [np.asarray(w) for w in problem.split_runs(white)], problem.split_runs(scales)
     n_data = sum(len(w) for w in white)
-    design = np.concatenate([np.asarray(w) for w in wx], axis=0) if problem.n_linear else None
+    design = np.asarray(wx) if problem.n_linear else None
     h = leverage(jac, n_data, design)
     hs = np.split(h, np.cumsum([len(w) for w in white])[:-1])
     ll = problem._pointwise([jnp.asarray(w / np.sqrt(1.0 - hr)) for w, hr in zip(white, hs)], scales, rho)

@@ -138,9 +138,14 @@ def _physics_jacobian(problem: FitProblem, u):
 
 
 def laplace_parts(problem: FitProblem, u):
-    """At u: the physics Jacobian, (σ_r, ρ_r) and every parameter value."""
+    """At u: the physics Jacobian, (σ_r, ρ_r), every parameter value, and the whitened residuals,
+    per-sample scales and whitened design of all runs (:meth:`FitProblem.profile_all`) — one
+    program for what a fit reads at its optimum (the misfit check and the linearised LOO read the
+    last three: programs of their own compiled the model once more for each fit)."""
     sigma, rho = problem.noise_values(u)
-    return _physics_jacobian(problem, u), sigma, rho, problem.full_values(u)
+    white, beta, _, scales, _ = problem.profile_all(u)
+    values = {**problem.physics_values(u[:problem.n_nonlinear]), **problem.linear_values(beta)}
+    return _physics_jacobian(problem, u), sigma, rho, values, (white, scales, problem.whitened_design(scales, rho))
 
 
 _laplace_parts = _map_jit(laplace_parts)
@@ -152,7 +157,7 @@ def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
     whitened residuals and prior pseudo-residuals), the asymptotic variances for the noise
     parameters (var log σ ≈ 1/2N, var ρ ≈ (1 − ρ²)/N, mapped to s and logit(ρ/ρ_max) and capped by
     their priors). The two blocks are taken as uncorrelated, as they are asymptotically."""
-    jac, sigma, rho, _ = _laplace_parts(problem, jnp.asarray(u))
+    jac, sigma, rho, _, _ = _laplace_parts(problem, jnp.asarray(u))
     return laplace_from_parts(problem, u, jac, sigma, rho)
 
 
@@ -343,7 +348,7 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
                      bool(result == optx.RESULTS.successful), _message(result))
     us, lds, oks, messages = zip(*(finals[r] for r in rep))
     u, ld, ok, message = best_start(us, lds, oks, messages)
-    jac, sigma, rho, values = _laplace_parts(problem, u)
+    jac, sigma, rho, values, _ = _laplace_parts(problem, u)
     cov = laplace_from_parts(problem, u, jac, sigma, rho)
     values = {k: np.asarray(v) for k, v in values.items()}
     return MapResult(problem=problem, run_names=run_names, u=u, cov=cov, values=values,

@@ -19,21 +19,16 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.stats import chi2
 
-from ._map import _map_jit
+from ._map import _laplace_parts  # the MAP fit's program at its optimum
 
 MISFIT_BLOCKS = 20  # blocks per run for the batch means
 MISFIT_ALPHA = 0.01  # a ratio is used only when white residuals would exceed it this rarely
 
 
-@_map_jit  # with the MAP's XLA options: fit_campaign compiles it right after the MAP
-def _whitened(problem, u):
-    return problem.profile(u)[0]
-
-
 def misfit_variance_ratio(problem, u, n_blocks: int = MISFIT_BLOCKS) -> np.ndarray:
     """Per run: L · var(block means of the whitened residuals) / mean(whitened²) at ``u``
     (1 when the run is too short for ``n_blocks`` blocks of 2 samples)."""
-    white = _whitened(problem, jnp.asarray(u))
+    white = problem.split_runs(_laplace_parts(problem, jnp.asarray(u))[4][0])
     out = []
     for w in white:
         w = np.asarray(w, float)
@@ -61,8 +56,6 @@ def tempered_physics_covariance(problem, u, factor: float) -> np.ndarray:
     """Laplace covariance of the physics block under the likelihood to the power 1/``factor``:
     (JₗᵀJₗ/factor + P)⁻¹, Jₗ the Jacobian of the whitened residuals and P the prior's precision
     (the Gauss–Newton curvature ``laplace_covariance`` inverts is JₗᵀJₗ + P)."""
-    from ._map import _laplace_parts
-
     jac = np.asarray(_laplace_parts(problem, jnp.asarray(u))[0], float)
     n = problem.n_nonlinear
     prior_precision = np.diag(1.0 / np.asarray(problem.prior_sd, float) ** 2)
