@@ -1,5 +1,6 @@
-"""FitProblem evaluates the samples of every run as one vector: the same likelihood, noise
-update and profile as run by run (SYNTHETIC campaign of tests/benches/effects/base.toml)."""
+"""FitProblem's views of all runs at once (``profile_all``, ``pointwise_log_likelihood``, the
+closed-form noise update's segment sums) equal the likelihood written run by run, with AR(1)
+restarting at each run's first sample (SYNTHETIC campaign of tests/benches/effects/base.toml)."""
 
 from pathlib import Path
 
@@ -43,7 +44,7 @@ def _run_by_run(problem: FitProblem, u):
 
 
 @pytest.mark.parametrize("cycle_noise", [False, True], ids=["one level per run", "cycle-amplitude noise"])
-def test_all_runs_at_once_equal_run_by_run(campaign, cycle_noise):
+def test_views_of_all_runs_equal_run_by_run(campaign, cycle_noise):
     kinds = tuple(r.kind for r in campaign.runs)
     assert kinds.count("hysteresis") >= 2 and kinds.count("transmission_error") >= 2
     problem = build_problem(campaign, m.CampaignModel(run_kinds=kinds, drift=True),
