@@ -111,7 +111,7 @@ def _noise_update(problem: FitProblem, u):
     if problem.noise_shape is not None:
         # σ_i² = (s w_i)² + floor²: s² from the innovations above the floor, each over w_i²
         w2 = jnp.concatenate(problem.noise_shape) ** 2
-        var_s = problem.sum_runs(jnp.maximum(innov2 - problem.per_sample(floor2), 0.0) / w2 * later) / n_pairs
+        var_s = problem.sum_runs(jnp.maximum(innov2 - problem.per_sample(floor2), 0.0) / w2) / n_pairs
         log_s = 0.5 * jnp.log(jnp.maximum(var_s, 1e-4 * jnp.maximum(floor2, 1e-26)))
     else:
         var = problem.sum_runs(innov2) / n_pairs
@@ -143,9 +143,9 @@ def laplace_parts(problem: FitProblem, u):
     program for what a fit reads at its optimum (the misfit check and the linearised LOO read the
     last three: programs of their own compiled the model once more for each fit)."""
     sigma, rho = problem.noise_values(u)
-    white, beta, _, scales, _ = problem.profile_all(u)
-    values = {**problem.physics_values(u[:problem.n_nonlinear]), **problem.linear_values(beta)}
-    return _physics_jacobian(problem, u), sigma, rho, values, (white, scales, problem.whitened_design(scales, rho))
+    white, _, _, scales, _ = problem.profile_all(u)  # the same profile as full_values' (one in XLA)
+    return (_physics_jacobian(problem, u), sigma, rho, problem.full_values(u),
+            (white, scales, problem.whitened_design(scales, rho)))
 
 
 _laplace_parts = _map_jit(laplace_parts)

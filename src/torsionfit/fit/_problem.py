@@ -357,10 +357,6 @@ class FitProblem(eqx.Module):
         s = jnp.exp(u[self.n_nonlinear:self.n_nonlinear + self.n_runs])
         return [jnp.sqrt((s[r] * w) ** 2 + self.floors[r] ** 2) for r, w in enumerate(self.noise_shape)]
 
-    def scales_all(self, u):
-        """:meth:`sample_scales` of all runs, (N,)."""
-        return jnp.concatenate(self.sample_scales(u))
-
     def whitened_design(self, scales, rho) -> jnp.ndarray:
         """The linear parameters' design of every run, whitened as the residuals, (N, n_linear);
         ``scales`` (N,) per sample, ``rho`` per run."""
