@@ -222,6 +222,36 @@ def test_ninety_percent_intervals_are_calibrated():
     assert np.all(hits.mean(axis=0) >= 0.75), message
 
 
+#: campaigns of the encoder-step case (the white-noise bench's shape: its programs are reused)
+STEP_ONLY_SEEDS = range(500, 520)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "known: with no angle noise above the 1″ encoder steps the torque noise's share of the angle "
+    "error dominates, and it is counted sample by sample although the denoised torque's error is "
+    "correlated over the smoother's window: the friction level's Laplace sd comes out ~2.5× too small"))
+def test_friction_intervals_hold_when_the_angle_noise_is_below_the_encoder_step():
+    """The white-noise bench without its extra angle noise: the encoder's 1″ steps and the
+    1.5 N·m torque noise are all the noise there is. The friction level's 95 % intervals should
+    cover the truth on at least 17 of 20 campaigns (a calibrated method fails that 1.6 % of the
+    time). Measured: friction 10 of 20, stiffness 16 of 20 (the same mechanism as friction's
+    ≈ 85 % at 90 % in the calibration test above, where 1″ of angle noise dilutes it). Counting the torque error with its long-run variance (the raw
+    noise's, as if each sample carried the whole window's error) brings friction's z-scores to
+    sd 0.9 but widens the stiffness interval about sixfold, so neither is the answer: the
+    likelihood needs the smoother's correlation itself."""
+    bench = load_bench(WHITE)
+    bench = dataclasses.replace(bench, noise=dataclasses.replace(bench.noise, angle_sd_arcsec=0.0))
+    hits = []
+    for seed in STEP_ONLY_SEEDS:
+        sim = simulate(bench, seed=seed)
+        hits.append(covered(fit_campaign(sim.campaign, seed=seed), sim.truth, 0.95))
+    hits = np.array(hits)
+    message = f"95 % intervals, encoder steps and torque noise only: {coverage_table(hits)}"
+    print("\n[encoder step] " + message)
+    assert hits[:, PHYSICAL.index("friction_torque")].sum() >= 17, message
+
+
 # --- 3. correlated noise -----------------------------------------------------------------------
 AR1_CAMPAIGNS = 100
 AR1_SEEDS = range(300, 300 + AR1_CAMPAIGNS)

@@ -362,17 +362,17 @@ def test_emcee_stop_when_ends_the_run_without_a_warning():
 # --- the tree and fit.json of a NUTS fit -------------------------------------------------------
 @pytest.fixture(scope="module")
 def small_nuts_fit(tmp_path_factory):
-    """A SYNTHETIC small campaign fitted with NUTS (short settings) through fit_campaign."""
+    """A SYNTHETIC small campaign fitted with NUTS as ``torsionfit paper`` fits (its full budget,
+    one start): the fit behind the tree, fit.json and the paper's choice of posterior."""
     from torsionfit.bench import load_bench, simulate
-    from torsionfit.report import fit_campaign, write_fit
+    from torsionfit.paper import FULL, fit_with_fallback
+    from torsionfit.report import write_fit
 
     path = tmp_path_factory.mktemp("bench") / "bench.toml"
     path.write_text((BENCHES / "rv_small_base.toml").read_text().replace("sample_rate_Hz = 5.0", "sample_rate_Hz = 0.5"))
     sim = simulate(load_bench(path), seed=0)
-    opts = FitOptions(sampler="nuts", n_starts=1, n_warmup=200, max_draws=500, progress=False, metric_draws=200)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        fit = fit_campaign(sim.campaign, opts, seed=0)
+    opts = dataclasses.replace(FULL, sampler="nuts", n_starts=1, metric_draws=200).fit_options({}, "tiny")
+    fit = fit_with_fallback(sim.campaign, opts, seed=0)
     out = tmp_path_factory.mktemp("fit")
     doc = write_fit(fit, out)
     return SimpleNamespace(fit=fit, doc=doc, out=out)
@@ -411,53 +411,86 @@ def test_nuts_fit_json_diagnostics(small_nuts_fit):
     assert set(doc["parameters"]) >= {"stiffness", "friction_torque", "dahl_torque", "gap", "gap_torque"}
 
 
+def test_paper_keeps_the_sampled_posterior_when_it_converges(small_nuts_fit):
+    """NUTS with the paper's budget converges on the tiny SYNTHETIC campaign: ``torsionfit
+    paper`` keeps its draws and says so (its fallback to Laplace: tests/test_paper.py)."""
+    from torsionfit.paper import posterior_line
+    from torsionfit.paper._document import _fit_entry
+
+    fit = small_nuts_fit.fit
+    d = fit.diagnostics
+    assert d["posterior"] == "sampled" and d["sampler"] == "nuts" and d["converged"] and "sampled_attempt" not in d
+    assert d["posterior_reason"].startswith("nuts converged within its budget")
+    assert d["rhat_max"] <= 1.01 and d["ess_min"] >= 400 and d["n_divergent"] == 0
+    assert posterior_line({"tiny": _fit_entry(fit)}).startswith("posteriors: tiny sampled (nuts, R̂ max")
+
+
 # --- slow: the posterior of SYNTHETIC bench campaigns -------------------------------------------
 PHYSICS = ("stiffness", "friction_torque", "dahl_torque", "gap", "gap_torque")
 
 
-def _small_campaign(seed):
-    """The small SYNTHETIC base-model campaign at 1 Hz, its problem and MAP."""
+def _small_campaign(seed, angle_sd_arcsec=None):
+    """The small SYNTHETIC base-model campaign at 0.5 Hz (the shapes of :func:`small_nuts_fit`'s,
+    whose compiled programs it reuses), its problem and MAP; with ``angle_sd_arcsec``, white
+    angle noise of that sd on top of the encoder's 1″ steps."""
     import tempfile
 
     from torsionfit.bench import load_bench, simulate
     from torsionfit.fit import fit_map
     from torsionfit.report import prepare_fit
 
+    text = (BENCHES / "rv_small_base.toml").read_text().replace("sample_rate_Hz = 5.0", "sample_rate_Hz = 0.5")
+    if angle_sd_arcsec is not None:
+        text += f"\n[noise]\nangle_sd_arcsec = {angle_sd_arcsec}\n"
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.toml"
-        path.write_text((BENCHES / "rv_small_base.toml").read_text().replace("sample_rate_Hz = 5.0", "sample_rate_Hz = 1.0"))
+        path.write_text(text)
         sim = simulate(load_bench(path), seed=seed)
     campaign, _, problem = prepare_fit(sim.campaign, FitOptions())
     runs = [r.name for r in campaign.runs]
     return sim, problem, fit_map(problem, runs, n_starts=2, seed=seed)
 
 
+#: SYNTHETIC campaigns of the recovery test
+RECOVERY_SEEDS = tuple(range(10))
+
+
 @pytest.mark.slow
 def test_nuts_recovers_the_truth_on_bench_campaigns():
-    """Two SYNTHETIC campaigns (seeds 0, 1): of the 10 (campaign, parameter) pairs at least 8
-    have the truth inside the 95 % HDI (9.6 expected; ``benchmarks/bench_samplers.py``-style
-    runs over more seeds belong in a script), and every run converged by the NUTS rule."""
+    """Ten SYNTHETIC campaigns (seeds 0–9, 1″ white angle noise on the 1″ encoder), NUTS with
+    the fit's defaults: the stiffness's truth inside the 95 % HDI on at least 9 of 10, and of
+    the 50 (campaign, physical parameter) pairs at least 45; every run converged by the NUTS
+    rule, without a divergence. Measured: stiffness 10 of 10, all pairs 45 of 50 — the Dahl
+    torque's truth lies above the posterior mean on all ten (by 1.3 sd on average; 7 of 10
+    inside). The angle noise is there because without it the friction level's posterior is
+    too narrow whatever the sampler (tests/test_fit_statistics.py, the encoder-step case)."""
     from torsionfit.report._pipeline import _hdi
 
-    inside = 0
-    for seed in (0, 1):
-        sim, problem, m = _small_campaign(seed)
+    inside = {name: 0 for name in PHYSICS}
+    for seed in RECOVERY_SEEDS:
+        sim, problem, m = _small_campaign(seed, angle_sd_arcsec=1.0)
         with warnings.catch_warnings():
             warnings.simplefilter("error", ConvergenceWarning)
             res = run_nuts(problem, m, seed=seed, progress=False)
-        assert res.converged and res.n_divergent == 0
+        assert res.converged and res.n_divergent == 0, seed
         values = jax.vmap(lambda u: problem.physics_values(u[:problem.n_nonlinear]))(jnp.asarray(res.flat()))
         for name in PHYSICS:
             lo, hi = _hdi(np.ravel(np.asarray(values[name])))
-            inside += bool(lo <= float(np.ravel(sim.truth[name])[0]) <= hi)
-    assert inside >= 8
+            inside[name] += bool(lo <= float(np.ravel(sim.truth[name])[0]) <= hi)
+    assert inside["stiffness"] >= 9 and sum(inside.values()) >= 45, inside
 
 
 @pytest.mark.slow
-def test_nuts_agrees_with_emcee_where_both_converge():
-    """Means of the physical parameters (in u) within 0.1 posterior sd, sds within 15 %; NUTS
-    run to a bulk ESS of 2000 so that the Monte-Carlo error of the difference is ~0.03 sd."""
-    _, problem, m = _small_campaign(0)
+def test_nuts_agrees_with_emcee_where_both_converge(small_nuts_fit):
+    """MAP → Laplace start → emcee to convergence, and NUTS, on the small SYNTHETIC campaign.
+    emcee: the posterior of the physics is centred on the MAP and about as wide as the Laplace
+    approximation, and the tree's convergence summary agrees. NUTS against emcee: means of the
+    physical parameters (in u) within 0.1 posterior sd, sds within 15 %; NUTS run to a bulk ESS
+    of 2000 so that the Monte-Carlo error of the difference is ~0.03 sd."""
+    from torsionfit.sample import convergence_summary, to_datatree
+
+    fit = small_nuts_fit.fit
+    problem, m = fit.problem, fit.map_result
     with warnings.catch_warnings():
         warnings.simplefilter("error", ConvergenceWarning)
         e = run_sampler(problem, m, seed=0, progress=False)
@@ -466,5 +499,10 @@ def test_nuts_agrees_with_emcee_where_both_converge():
     k = problem.n_model
     de, dn = e.flat()[:, :k], n.flat()[:, :k]
     sd = de.std(0)
+    laplace_sd = m.sd[:k]
+    assert np.all(np.abs(de.mean(0) - m.u[:k]) < 0.5 * laplace_sd)
+    assert np.all((sd > 0.5 * laplace_sd) & (sd < 2.0 * laplace_sd))
+    summary = convergence_summary(to_datatree(problem, e, [r.name for r in fit.campaign.runs]))
+    assert summary["converged"] and summary["rhat_max"] < 1.05 and summary["ess_min"] > 400
     assert np.all(np.abs(dn.mean(0) - de.mean(0)) < 0.1 * sd)
     np.testing.assert_allclose(dn.std(0), sd, rtol=0.15)

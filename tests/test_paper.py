@@ -4,7 +4,6 @@ inconsistencies, the operating grid, and the command end to end with its quick s
 Every dataset here is SYNTHETIC: hand-made polynomials, or the bundled campaigns' virtual
 benches (data/paper-*/bench.toml)."""
 
-import dataclasses
 import json
 import os
 import subprocess
@@ -246,17 +245,5 @@ def test_paper_fit_falls_back_to_laplace_when_the_sampler_does_not_converge_with
     assert line == "posteriors: tiny Laplace (emcee not converged within its budget)"
 
 
-@pytest.mark.slow
-@pytest.mark.runtime_bound
-def test_paper_fit_uses_the_sampled_posterior_when_it_converges(tmp_path):
-    """NUTS with the paper's budget converges on the tiny SYNTHETIC campaign: its draws are kept."""
-    from torsionfit.paper import FULL, fit_with_fallback, posterior_line
-    from torsionfit.paper._document import _fit_entry
-
-    options = dataclasses.replace(FULL, sampler="nuts", n_starts=1, metric_draws=200).fit_options({}, "tiny")
-    fit = fit_with_fallback(_tiny_campaign(tmp_path), options, seed=0)
-    d = fit.diagnostics
-    assert d["posterior"] == "sampled" and d["sampler"] == "nuts" and d["converged"] and "sampled_attempt" not in d
-    assert d["posterior_reason"].startswith("nuts converged within its budget")
-    assert d["rhat_max"] <= 1.01 and d["ess_min"] >= 400 and d["n_divergent"] == 0
-    assert posterior_line({"tiny": _fit_entry(fit)}).startswith("posteriors: tiny sampled (nuts, R̂ max")
+# the paper keeping a converged NUTS posterior: tests/test_nuts.py (it shares that file's NUTS fit
+# of this campaign)

@@ -489,26 +489,8 @@ def test_linear_parameters_drawn_from_their_conditional_posterior(small):
         to_datatree(problem, res, small.runs, linear="nope")
 
 
-@pytest.mark.slow
-@pytest.mark.runtime_bound
-def test_real_campaign_converges_near_the_map(small):
-    """MAP → Laplace start → emcee to convergence on the small campaign: the posterior of the
-    physics is centred on the MAP and about as wide as the Laplace approximation."""
-    from torsionfit.fit import fit_map
-
-    m = fit_map(small.problem, small.runs, n_starts=2)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", ConvergenceWarning)
-        res = run_sampler(small.problem, m, seed=0, progress=False)
-    assert res.converged
-    n = small.problem.n_model
-    draws = res.flat()[:, :n]
-    sd = m.sd[:n]
-    assert np.all(np.abs(draws.mean(0) - m.u[:n]) < 0.5 * sd)
-    assert np.all((draws.std(0) > 0.5 * sd) & (draws.std(0) < 2.0 * sd))
-    tree = to_datatree(small.problem, res, small.runs)
-    s = convergence_summary(tree)
-    assert s["converged"] and s["rhat_max"] < 1.05 and s["ess_min"] > 400
+# emcee to convergence on this campaign from its MAP, against the Laplace approximation and NUTS:
+# tests/test_nuts.py::test_nuts_agrees_with_emcee_where_both_converge (one emcee run serves both)
 
 
 # --- the Laplace independence move -------------------------------------------------------------
