@@ -1,7 +1,8 @@
 """NUTS (BlackJAX) beside emcee: the sampler on toys with known answers (Gaussian: the target;
 Neal's funnel: divergences flagged, never a converged answer), its coordinates for the noise
-parameters, exact resume, the ArviZ tree and fit.json of a NUTS fit, and ``--sampler auto``'s
-choice. Recovery on SYNTHETIC bench campaigns and agreement with emcee are slow tests."""
+parameters, exact resume, the ArviZ tree and fit.json of a NUTS fit (and ``torsionfit paper`` keeping its
+draws), and ``--sampler auto``'s choice. Recovery on ten SYNTHETIC bench campaigns and agreement
+with emcee (and of emcee with the Laplace approximation) are slow tests."""
 
 import dataclasses
 import json
@@ -433,8 +434,6 @@ def _small_campaign(seed, angle_sd_arcsec=None):
     """The small SYNTHETIC base-model campaign at 0.5 Hz (the shapes of :func:`small_nuts_fit`'s,
     whose compiled programs it reuses), its problem and MAP; with ``angle_sd_arcsec``, white
     angle noise of that sd on top of the encoder's 1″ steps."""
-    import tempfile
-
     from torsionfit.bench import load_bench, simulate
     from torsionfit.fit import fit_map
     from torsionfit.report import prepare_fit

@@ -3,7 +3,8 @@ tree layout, netCDF round trip, diagnostics.
 
 The sampler's machinery is tested on a toy Gaussian problem (known answer, fast); the tree
 on a short run of a real small campaign started at the bench's truth (no MAP: its
-compilation alone takes ~20 s); the full MAP → converged chain on a real campaign is slow.
+compilation alone takes ~20 s); the full MAP → converged chain on that campaign, against the
+Laplace approximation, is in tests/test_nuts.py beside NUTS on the same campaign.
 """
 
 import math
