@@ -361,6 +361,14 @@ def test_emcee_stop_when_ends_the_run_without_a_warning():
 
 
 # --- the tree and fit.json of a NUTS fit -------------------------------------------------------
+def _small_bench_text(angle_sd_arcsec=None) -> str:
+    """The small SYNTHETIC base-model bench at 0.5 Hz (one shape for the fixture below and the
+    recovery campaigns, which reuse its compiled programs); with ``angle_sd_arcsec``, white
+    angle noise of that sd on top of the encoder's 1″ steps."""
+    text = (BENCHES / "rv_small_base.toml").read_text().replace("sample_rate_Hz = 5.0", "sample_rate_Hz = 0.5")
+    return text if angle_sd_arcsec is None else text + f"\n[noise]\nangle_sd_arcsec = {angle_sd_arcsec}\n"
+
+
 @pytest.fixture(scope="module")
 def small_nuts_fit(tmp_path_factory):
     """A SYNTHETIC small campaign fitted with NUTS as ``torsionfit paper`` fits (its full budget,
@@ -370,7 +378,7 @@ def small_nuts_fit(tmp_path_factory):
     from torsionfit.report import write_fit
 
     path = tmp_path_factory.mktemp("bench") / "bench.toml"
-    path.write_text((BENCHES / "rv_small_base.toml").read_text().replace("sample_rate_Hz = 5.0", "sample_rate_Hz = 0.5"))
+    path.write_text(_small_bench_text())
     sim = simulate(load_bench(path), seed=0)
     opts = dataclasses.replace(FULL, sampler="nuts", n_starts=1, metric_draws=200).fit_options({}, "tiny")
     fit = fit_with_fallback(sim.campaign, opts, seed=0)
@@ -431,19 +439,14 @@ PHYSICS = ("stiffness", "friction_torque", "dahl_torque", "gap", "gap_torque")
 
 
 def _small_campaign(seed, angle_sd_arcsec=None):
-    """The small SYNTHETIC base-model campaign at 0.5 Hz (the shapes of :func:`small_nuts_fit`'s,
-    whose compiled programs it reuses), its problem and MAP; with ``angle_sd_arcsec``, white
-    angle noise of that sd on top of the encoder's 1″ steps."""
+    """A campaign of :func:`_small_bench_text`, its problem and MAP."""
     from torsionfit.bench import load_bench, simulate
     from torsionfit.fit import fit_map
     from torsionfit.report import prepare_fit
 
-    text = (BENCHES / "rv_small_base.toml").read_text().replace("sample_rate_Hz = 5.0", "sample_rate_Hz = 0.5")
-    if angle_sd_arcsec is not None:
-        text += f"\n[noise]\nangle_sd_arcsec = {angle_sd_arcsec}\n"
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.toml"
-        path.write_text(text)
+        path.write_text(_small_bench_text(angle_sd_arcsec))
         sim = simulate(load_bench(path), seed=seed)
     campaign, _, problem = prepare_fit(sim.campaign, FitOptions())
     runs = [r.name for r in campaign.runs]
