@@ -316,22 +316,6 @@ def test_model_play_and_loading_stiffness_match_the_data_only_reading(tmp_path):
 
 
 @pytest.mark.slow
-def test_fit_with_a_nested_effect_ends_no_lower_than_the_fit_without_it(tmp_path):
-    """SYNTHETIC, no lag in the data: the model with a damped gap crossing contains the one
-    without it (T_g → 0), so its MAP starts from that optimum too and ends no lower — from the
-    prior's starts alone it stopped in a worse optimum on measured loops."""
-    from test_diagnose_friction import friction_case
-
-    campaign = friction_case(tmp_path, None, 0).campaign
-    without = fit_campaign(campaign, FitOptions(sampler="laplace", progress=False), seed=0)
-    with_lag = fit_campaign(campaign, FitOptions(effects={"gap_lag": True}, sampler="laplace", progress=False), seed=0)
-    # log posterior: the start is the smaller model's optimum plus the lag's prior density three
-    # sds out, −9/2 − log(2√(2π)) ≈ −6.1; from there LM only climbs
-    assert with_lag.map_result.log_density >= without.map_result.log_density - 6.2
-    # the lag stays negligible: the crossing of a clean loop is not damped
-    assert float(with_lag.map_result.values["gap_lag_time"]) < 0.5  # s, against ~2.5 s to cross the gap
-
-
 def test_a_fit_with_parts_that_vanish_at_zero_starts_from_the_model_without_them():
     from torsionfit.report._pipeline import _without_nested
 

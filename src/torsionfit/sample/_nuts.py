@@ -601,7 +601,7 @@ def _load(path) -> dict | None:
 # --- the sampler ---------------------------------------------------------------------------
 @in_float64
 def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int = 500,
-             initial_draws: int = 500, max_draws: int = 4000, target_accept: float = 0.9,
+             initial_draws: int = 200, max_draws: int = 4000, target_accept: float = 0.9,
              rhat_max: float = 1.01, min_ess: float = 400.0, backend_path=None, resume: bool = False,
              progress: bool = True) -> NutsResult:
     """Sample the posterior of ``problem`` with NUTS, started from ``map_result``'s Laplace
