@@ -20,11 +20,12 @@ run: $(BIN)/.installed
 # xdist worker otherwise runs out of memory mappings (vm.max_map_count) inside XLA). Every test process
 # computes on one core (tests/conftest.py), so the NUTS file runs beside the two-worker pool
 # rather than before it: its log is printed when both are done, and either failing fails the target
+# (the pool takes the longest files first: tests/conftest.py, LONGEST_FILES)
 test: $(BIN)/.installed
 	$(BIN)/python -m pytest -q tests/test_batch_sampler.py
 	@log=$$(mktemp); \
 	$(BIN)/python -m pytest -q tests/test_nuts.py > $$log 2>&1 & nuts=$$!; \
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=15 --ignore tests/test_batch_sampler.py --ignore tests/test_nuts.py; \
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=15 --ignore tests/test_batch_sampler.py --ignore tests/test_nuts.py; \
 	pool=$$?; wait $$nuts; nuts_rc=$$?; \
 	echo "--- tests/test_nuts.py (run beside the pool):"; cat $$log; rm -f $$log; \
 	test $$pool -eq 0 && test $$nuts_rc -eq 0

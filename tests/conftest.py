@@ -108,6 +108,35 @@ def _optimised_programs_for_runtime_bound_tests(request, monkeypatch):
         jax.config.update("jax_disable_most_optimizations", before)
 
 
+#: The files that take longest in the two-worker pool (seconds of test time in a clean-clone run
+#: on the idle 2-core machine, the NUTS file beside them), longest first. ``make test`` runs the
+#: pool with ``--dist loadfile --no-loadscope-reorder``, so the workers take the files in the
+#: collection's order: these first, then the rest as collected. pytest-xdist's default order (most
+#: tests first) left the few-test, minute-long files (the 200-unit acceptance, the TE-export
+#: diagnose) for the end, where one worker ran them while the other had nothing left (the last
+#: 3 min at 75–86 % of the two cores). Only the order changes; a stale list costs time, not tests.
+LONGEST_FILES = (
+    "test_diagnose.py",  # 334
+    "test_batch.py",  # 255
+    "test_diagnose_friction.py",  # 212
+    "test_accept.py",  # 190
+    "test_report.py",  # 160
+    "test_model.py",  # 149
+    "test_fit_statistics.py",  # 132
+    "test_te_exports_e2e.py",  # 130
+    "test_paper.py",  # 87
+    "test_sample.py",  # 81
+    "test_notebooks.py",  # 63
+    "test_nuts_te_only.py",  # 59
+    "test_library_hygiene.py",  # 57
+)
+
+
+def pytest_collection_modifyitems(session, config, items):
+    rank = {name: i for i, name in enumerate(LONGEST_FILES)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the rest as collected
+
+
 def pytest_unconfigure(config):
     # the process that named the folder ends last (xdist's controller after its workers)
     if _NAMED_HERE:
