@@ -348,7 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
                            "against which emcee's first checks are judged)")
     p.add_argument("--chains", type=int, default=4, help="NUTS chains (default 4)")
     p.add_argument("--max-draws", type=int, default=4000,
-                   help="cap on NUTS draws per chain (500, grown by half until converged); reaching it gives converged: false")
+                   help="cap on NUTS draws per chain (200, grown by half until converged); reaching it gives converged: false")
     p.add_argument("--ar1", choices=tuple(AR1), default="auto", help="AR(1) residuals (auto: runs of ≥ 100 samples)")
     p.add_argument("--student-t", type=float, default=None, metavar="DOF", help="Student-t likelihood with DOF degrees of freedom")
     p.add_argument("--save-chain", action="store_true",

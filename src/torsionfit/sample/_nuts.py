@@ -38,7 +38,7 @@ Choices, and why:
   for the posterior's curvature somewhere. As Stan advises (raise ``adapt_delta``), the run then
   raises the target acceptance (1 − target halved, at most :data:`TARGET_ACCEPT_RAISES` times),
   adapts the chains again from where they are and discards the draws so far (they may be
-  biased). On the measured baseline pos1 loop: 11 divergent transitions in 4 × 500 draws at
+  biased). On the measured baseline pos1 loop (an earlier model): 11 divergent transitions in 4 × 500 draws at
   0.9, none at 0.95 (46 leapfrog steps per draw). Divergences left at the last target fail
   the run.
 - **Budget**: after the warm-up, draws in blocks; the chains are checked after
