@@ -125,6 +125,7 @@ def test_clean_friction_campaign_adds_neither(tmp_path, seed):
     assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
 
 
+@pytest.mark.slow
 def test_fit_with_a_nested_effect_ends_no_lower_than_the_fit_without_it(tmp_path):
     """SYNTHETIC, no lag in the data: the model with a damped gap crossing contains the one
     without it (T_g → 0), so its MAP starts from that optimum too and ends no lower — from the

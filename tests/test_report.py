@@ -315,7 +315,6 @@ def test_model_play_and_loading_stiffness_match_the_data_only_reading(tmp_path):
     assert "play" not in [s.name for s in te_only.specs]
 
 
-@pytest.mark.slow
 def test_a_fit_with_parts_that_vanish_at_zero_starts_from_the_model_without_them():
     from torsionfit.report._pipeline import _without_nested
 
