@@ -118,6 +118,7 @@ def fit_options(args) -> FitOptions:
                       laplace_shape=args.laplace_shape,
                       max_steps=args.max_steps, n_starts=args.starts, misfit_inflation=not args.no_misfit_inflation,
                       noise=NoiseOptions(ar1=None if args.ar1 else False, cycle_amplitude_noise=args.cycle_noise,
+                                         cycle_class_noise=args.class_noise,
                                          torque_error_variance=not args.no_torque_error_variance))
 
 
@@ -201,6 +202,12 @@ def validate(unit: str, folder: Path, args) -> dict:
     out["reference"] = _reference(path, args.decimate, held, len(y))
     out["ratio_held_out"] = out["rmse_held_out_arcsec"] / out["reference"]["oos_rest"]
     _figure(unit, t, tau, y, pred, lo, hi, held, args.output / "figures")
+    if args.save_predictions is not None:
+        # for re-scoring without a refit; derived from the measured file: keep outside the repository
+        args.save_predictions.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(args.save_predictions / f"{unit}.npz", time_s=t, torque_Nm=tau, angle_rad=y, test_nr=nr,
+                            prediction_rad=pred.astype(np.float32), prediction_map_rad=pred_map,
+                            noise_marginal_rad=np.broadcast_to(marginal, y.shape), seed=args.seed)
     return out
 
 
@@ -328,12 +335,14 @@ def _config(unit: str) -> str:
 #: the likelihood's noise, as the table's header names it
 NOISE_TEXT = {
     "iid": "iid noise with the posterior widened for structure the residuals keep",
+    "iid-class": "iid noise with a level per cycle class (play ramps, stiffness ramps; their ratio read at the MAP) "
+                 "and the posterior widened for structure the residuals keep",
     "ar1": "AR(1) noise",
 }
 
 
 def _noise(args) -> str:
-    return "ar1" if args.ar1 else "iid"
+    return "ar1" if args.ar1 else "iid-class" if args.class_noise else "iid"
 
 
 def posterior_text(sampler: str, laplace_shape: str) -> str:
@@ -474,7 +483,12 @@ def parse_args(argv=None) -> argparse.Namespace:
                              "(NoiseOptions.torque_error_variance)")
     parser.add_argument("--cycle-noise", action="store_true",
                         help="noise level scaled by the amplitude of each sample's torque cycle (NoiseOptions.cycle_amplitude_noise)")
+    parser.add_argument("--class-noise", action="store_true",
+                        help="a noise level per cycle class, the ratio read at the MAP (NoiseOptions.cycle_class_noise)")
     parser.add_argument("--effects", type=json.loads, default=EFFECTS, help=f"model effects as JSON (default {json.dumps(EFFECTS)})")
+    parser.add_argument("--save-predictions", type=Path, default=None,
+                        help="also write each unit's data and predictive draws to DIR/<unit>.npz (derived from the "
+                             "measured files: keep it outside the repository)")
     parser.add_argument("--jobs", type=int, default=1, help="units fitted in this many processes at once")
     parser.add_argument("--refresh-references", action="store_true",
                         help="recompute the reference fits for OUTPUT/validation.json (no model fit) and re-write the table")

@@ -121,21 +121,35 @@ def test_metrics_json_records_version_and_command_line(tmp_path, capsys):
                                  "command": f"torsionfit metrics {tmp_path / 'c'} --json"}
 
 
-@pytest.mark.parametrize("flag, ar1", [([], None), (["--ar1", "off"], False), (["--ar1", "on"], True)])
-def test_diagnose_passes_its_noise_option_to_every_fit(tmp_path, capsys, monkeypatch, flag, ar1):
-    import torsionfit.diagnose as diagnose_module
+def _noise_seen(tmp_path, monkeypatch, module, function: str, command: str, flag: list, read):
+    """What ``read`` gives of the options ``command`` hands to ``module.function`` (stopped there)."""
 
     class Seen(Exception):
         pass
 
-    def capture(campaign, options, seed=0, progress=None):
-        raise Seen(options.noise.ar1)
+    def capture(campaign, options, *args, **kwargs):
+        raise Seen(read(options.noise))
 
     main(["simulate", str(BENCH), "-o", str(tmp_path / "c"), "--quiet"])
-    monkeypatch.setattr(diagnose_module, "diagnose", capture)
+    monkeypatch.setattr(module, function, capture)
     with pytest.raises(Seen) as seen:
-        main(["diagnose", str(tmp_path / "c"), "-o", str(tmp_path / "d"), "--quiet", *flag])
-    assert seen.value.args == (ar1,)
+        main([command, str(tmp_path / "c"), "-o", str(tmp_path / "out"), "--quiet", *flag])
+    return seen.value.args[0]
+
+
+@pytest.mark.parametrize("flag, ar1", [([], None), (["--ar1", "off"], False), (["--ar1", "on"], True)])
+def test_diagnose_passes_its_noise_option_to_every_fit(tmp_path, monkeypatch, flag, ar1):
+    import torsionfit.diagnose as diagnose_module
+
+    assert _noise_seen(tmp_path, monkeypatch, diagnose_module, "diagnose", "diagnose", flag, lambda n: n.ar1) == ar1
+
+
+@pytest.mark.parametrize("flag, on", [([], False), (["--class-noise"], True)])
+def test_fit_passes_the_class_noise_option(tmp_path, monkeypatch, flag, on):
+    import torsionfit.report as report_module
+
+    seen = _noise_seen(tmp_path, monkeypatch, report_module, "fit_campaign", "fit", flag, lambda n: n.cycle_class_noise)
+    assert seen is on
 
 
 def test_command_line_is_quoted_as_a_shell_takes_it_back():

@@ -129,7 +129,7 @@ def _cmd_fit(args) -> int:
     out = Path(args.output)
     options = FitOptions(
         effects=_parse_effects(args.with_),
-        noise=NoiseOptions(ar1=AR1[args.ar1], student_t_dof=args.student_t),
+        noise=NoiseOptions(ar1=AR1[args.ar1], student_t_dof=args.student_t, cycle_class_noise=args.class_noise),
         sampler=args.sampler,
         n_walkers=args.walkers,
         max_steps=args.max_steps,
@@ -351,6 +351,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="cap on NUTS draws per chain (200, grown by half until converged); reaching it gives converged: false")
     p.add_argument("--ar1", choices=tuple(AR1), default="auto", help="AR(1) residuals (auto: runs of ≥ 100 samples)")
     p.add_argument("--student-t", type=float, default=None, metavar="DOF", help="Student-t likelihood with DOF degrees of freedom")
+    p.add_argument("--class-noise", action="store_true",
+                   help="a noise level per class of cycle amplitude (play ramps, stiffness ramps), their ratio read "
+                        "from the residuals at the MAP; the shares go to fit.json")
     p.add_argument("--save-chain", action="store_true",
                    help="keep the chain in OUTPUT/chain.h5 (emcee) / OUTPUT/chain-nuts.npz (NUTS)")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from those files")

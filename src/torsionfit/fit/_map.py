@@ -229,6 +229,8 @@ def map_starts(problem: FitProblem, n_starts: int, seed: int) -> np.ndarray:
     """(n_starts, n_nonlinear) starting points: the prior centre, then draws around it."""
     rng = np.random.default_rng(seed)
     prior_mean, prior_sd = np.asarray(problem.prior_mean), np.asarray(problem.prior_sd)
+    if n_starts < 1:  # warm starts alone (fit_map's ``warm_starts``)
+        return np.zeros((0, problem.n_nonlinear))
     starts = [prior_mean.copy()]
     for _ in range(n_starts - 1):
         starts.append(prior_mean + 0.7 * prior_sd * rng.standard_normal(problem.n_nonlinear))
@@ -317,7 +319,7 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
             max_steps: int = 300, noise_passes: int = 3, rtol: float = 1e-8,
             atol: float = 1e-10, warm_starts=None, polish_steps: int = 300) -> MapResult:
     """MAP by Levenberg–Marquardt from ``n_starts`` starts (the prior centre, then draws around
-    it). The first pass treats the noise as iid (with ρ near 1 the whitened residuals are
+    it; 0: the warm starts alone). The first pass treats the noise as iid (with ρ near 1 the whitened residuals are
     increments, and a fit from far away can match the loop's shape but not its level);
     between passes the noise level and AR(1) coefficient are re-estimated in closed form.
     Starts whose first pass ends at the same optimum (:data:`SAME_OPTIMUM_RTOL`) share the
@@ -331,6 +333,8 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     budget is part of a compiled program: equal budgets compile the solve once."""
     if noise_passes < 1:
         raise ValueError(f"noise_passes must be at least 1, got {noise_passes}")
+    if n_starts < 1 and warm_starts is None:
+        raise ValueError("fit_map: n_starts = 0 needs warm_starts to start from")
     run_names = tuple(run_names or (f"run{i}" for i in range(problem.n_runs)))
     solver = optx.LevenbergMarquardt(rtol=rtol, atol=atol)
     iid = iid_noise(problem)

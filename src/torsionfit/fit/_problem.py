@@ -66,6 +66,10 @@ class NoiseOptions:
     # measured loops whose misfit grows with the load: with one level for a whole file the
     # ±4 N·m play ramps sit far below the ±40 N·m ramps' misfit and the fit ignores them.
     cycle_amplitude_noise: bool = False
+    # True: a noise level per class of cycle amplitude (the play ramps, the stiffness ramps),
+    # their ratios read from the residuals at the MAP and the fit repeated with them
+    # (fit/_noise_classes.py); the run's noise parameter is the level of its largest cycles.
+    cycle_class_noise: bool = False
     # True: the denoised drive torque's error enters each hysteresis sample's variance as the
     # angle the *measured* loop branch moves across ±sd τ̂ (errors in variables, from the data:
     # fit/_torque_error.py). False: the angle noise alone (the latent torque knots stay).
@@ -520,6 +524,12 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
         else:
             bases.append(jnp.asarray(np.zeros((len(run), 0))))
     shape = None
+    if noise.cycle_amplitude_noise and noise.cycle_class_noise:
+        raise ValueError("NoiseOptions: cycle_amplitude_noise and cycle_class_noise are two shapes of the same "
+                         "noise level; choose one")
+    if noise.cycle_class_noise:
+        # one level for now: the fit sets the class shares at its MAP (fit/_noise_classes.py)
+        shape = [jnp.ones(len(run)) for run in campaign.runs]
     if noise.cycle_amplitude_noise:
         shape = [jnp.asarray(cycle_amplitude_shape(run.torque_Nm) if isinstance(run, HysteresisRun)
                              else np.ones(len(run))) for run in campaign.runs]

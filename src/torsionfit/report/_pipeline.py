@@ -22,6 +22,7 @@ from .._errors import InputError
 from .._provenance import provenance
 from ..fit import NoiseOptions, build_problem, fit_map
 from ..fit._map import nested_start
+from ..fit._noise_classes import class_shares, refit_with_class_noise
 from ..fit._misfit import MISFIT_RHO, misfit_correlated_runs, widen_for_misfit
 from ..io import Campaign, decimate
 from ..model import SteppedBacklash, model_with_effects
@@ -225,6 +226,10 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
              options.n_starts, problem.dim)
     map_result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed,
                          max_steps=options.map_steps, polish_steps=options.map_steps, warm_starts=warm)
+    if options.noise.cycle_class_noise:
+        # the classes' noise levels read at this optimum, the fit repeated with them
+        problem, map_result = refit_with_class_noise(problem, map_result, seed=seed, max_steps=options.map_steps,
+                                                     polish_steps=options.map_steps)
     if options.misfit_inflation:
         problem, map_result = widen_for_misfit(problem, map_result)
     log.info("MAP %s; now the posterior (%s) and the metrics", "converged" if map_result.converged
@@ -486,6 +491,9 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     diagnostics["map_message"] = map_result.message
     near_bound = {names[r]: rho for r, rho in misfit_correlated_runs(problem, map_result.u).items()}
     diagnostics["ar1_misfit_runs"] = near_bound
+    if options.noise.cycle_class_noise:
+        # noise level of each cycle class over the largest cycles', per run (fit/_noise_classes.py)
+        diagnostics["noise_class_shares"] = dict(zip(names, class_shares(problem)))
     if near_bound:
         diagnostics["noise_note"] = noise_note(near_bound)
 
