@@ -7,8 +7,9 @@ For each file (one run: the small play ramps and the large stiffness ramps toget
    with its level following the load through a first-order lag (``{lag = true}``) +
    ``distributed_friction`` + power-law ``stiffness_nonlinearity`` + ``asymmetry``, ``--effects``
    to change;
-   block means of ``--decimate`` samples; iid noise with the posterior widened for structure
-   the residuals keep, drawn from a split normal along the Laplace approximation's axes
+   block means of ``--decimate`` samples; iid noise with a level per cycle class (the play
+   ramps, the stiffness ramps: their ratio read at the MAP, ``--no-class-noise`` for one level)
+   and the posterior widened for structure the residuals keep, drawn from a split normal along the Laplace approximation's axes
    (``--laplace-shape gaussian`` for the Gaussian, whose draws of these non-Gaussian posteriors
    land where the posterior has no mass), ``--ar1`` for the fit's default AR(1) noise — with its coefficient near 1
    on these files the AR(1) likelihood counts the model's slow misfit as noise and fits the
@@ -483,8 +484,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                              "(NoiseOptions.torque_error_variance)")
     parser.add_argument("--cycle-noise", action="store_true",
                         help="noise level scaled by the amplitude of each sample's torque cycle (NoiseOptions.cycle_amplitude_noise)")
-    parser.add_argument("--class-noise", action="store_true",
-                        help="a noise level per cycle class, the ratio read at the MAP (NoiseOptions.cycle_class_noise)")
+    parser.add_argument("--class-noise", action=argparse.BooleanOptionalAction, default=True,
+                        help="a noise level per cycle class, their ratio read at the MAP (NoiseOptions.cycle_class_noise; "
+                             "default on; --no-class-noise: one level per file)")
     parser.add_argument("--effects", type=json.loads, default=EFFECTS, help=f"model effects as JSON (default {json.dumps(EFFECTS)})")
     parser.add_argument("--save-predictions", type=Path, default=None,
                         help="also write each unit's data and predictive draws to DIR/<unit>.npz (derived from the "

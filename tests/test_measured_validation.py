@@ -134,19 +134,24 @@ def test_measured_gap_crossings_sit_off_zero_torque():
 
 
 def test_the_validation_fits_with_iid_noise_and_ar1_on_request():
-    """The validated setting: iid noise with the posterior widened for misfit (on these files the
-    AR(1) coefficient comes out near 1 and the fit follows the increments, not the level);
+    """The validated setting: iid noise, a level per cycle class, with the posterior widened for
+    misfit (on these files the AR(1) coefficient comes out near 1 and the fit follows the
+    increments, not the level);
     ``--ar1`` gives the fit's default AR(1) noise for comparison, and the table says which."""
     default, ar1 = mv.fit_options(mv.parse_args([])), mv.fit_options(mv.parse_args(["--ar1"]))
     assert default.noise.ar1 is False and default.misfit_inflation
     assert ar1.noise.ar1 is None  # the fit's default: AR(1) on runs of ≥ 100 samples
-    assert mv._noise(mv.parse_args([])) == "iid" and mv._noise(mv.parse_args(["--ar1"])) == "ar1"
+    assert default.noise.cycle_class_noise  # a level per cycle class, ...
+    assert not mv.fit_options(mv.parse_args(["--no-class-noise"])).noise.cycle_class_noise  # ... or one
+    assert mv._noise(mv.parse_args([])) == "iid-class" and mv._noise(mv.parse_args(["--ar1"])) == "ar1"
+    assert mv._noise(mv.parse_args(["--no-class-noise"])) == "iid"
     import json
 
     doc = json.loads((ROOT / "docs" / "measured" / "validation" / "validation.json").read_text())
-    for noise, words in (("iid", "iid noise with the posterior widened"), ("ar1", "AR(1) noise")):
+    for noise, words in (("iid-class", "a level per cycle class"), ("iid", "iid noise with the posterior widened"),
+                         ("ar1", "AR(1) noise")):
         assert words in mv.markdown(doc["units"], doc["decimate"], doc["sampler"], doc["effects"], noise).splitlines()[0]
-    assert doc["noise"] == "iid"  # the committed table is the validated setting's
+    assert doc["noise"] == "iid-class"  # the committed table is the validated setting's
 
 
 def test_the_validation_draws_from_the_split_normal_and_the_gaussian_on_request():
@@ -182,7 +187,7 @@ def test_a_friction_level_lagging_the_load_predicts_a_held_out_ramp_better(tmp_p
     held = mv._block(mv._test_nr_of(path), 16, len(y), np.min) == max(ramps)
     rmse = {}
     for name, load in (("instantaneous", True), ("lagged", {"lag": True})):
-        args = mv.parse_args([])
+        args = mv.parse_args(["--no-class-noise"])  # one noise level, as the runs quoted above
         args.effects = {**mv.EFFECTS, "load_dependent_friction": load}
         with torsionfit.float64():
             fit = fit_campaign(train, mv.fit_options(args), seed=0)
