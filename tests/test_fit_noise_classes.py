@@ -91,3 +91,14 @@ def test_class_noise_and_amplitude_noise_are_exclusive(campaign):
     noise = NoiseOptions(cycle_class_noise=True, cycle_amplitude_noise=True)
     with pytest.raises(ValueError, match="choose one"):
         build_problem(campaign, campaign_model(campaign, FitOptions(noise=noise)), noise)
+
+
+def test_the_batch_and_diagnose_refuse_class_noise_they_would_not_refit(campaign):
+    from torsionfit.batch import BatchOptions
+    from torsionfit.diagnose import DiagnoseOptions, diagnose
+
+    noise = NoiseOptions(cycle_class_noise=True)
+    with pytest.raises(ValueError, match="not supported by the batch"):
+        BatchOptions(fit=FitOptions(noise=noise))
+    with pytest.raises(ValueError, match="diagnose: NoiseOptions.cycle_class_noise"):
+        diagnose(campaign, DiagnoseOptions(noise=noise))

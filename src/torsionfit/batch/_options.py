@@ -22,6 +22,13 @@ class BatchOptions:
     posterior_units: frozenset = frozenset()
     figures: bool = False
     group_size: int = 16
+
+    def __post_init__(self):
+        # the batch's MAP solves many units at once and has no refit for class shares: without
+        # this check every unit would silently keep one noise level
+        if self.fit.noise.cycle_class_noise:
+            raise ValueError("BatchOptions: NoiseOptions.cycle_class_noise is not supported by the batch "
+                             "(fit such units one at a time: torsionfit fit --class-noise)")
     seed: int = 0
     command: str | None = None  # the command line, recorded in the outputs (not a setting: a re-run keeps units)
 

@@ -131,6 +131,10 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
              progress=None) -> Diagnosis:
     """Close the loop on ``campaign``: see the module docstring. ``progress(text)`` is called
     with one line per stage."""
+    if options.noise.cycle_class_noise:
+        # its screening fits would keep one level under the option's name (no refit there)
+        raise ValueError("diagnose: NoiseOptions.cycle_class_noise is not supported; diagnose compares "
+                         "fits with one noise level per run")
     say = progress or (lambda text: None)
     effects = dict(options.initial_effects)
     say(f"fitting the base model ({', '.join(effects) or 'no extensions'})")
