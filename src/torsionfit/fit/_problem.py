@@ -35,8 +35,9 @@ from .. import model as m
 from .._errors import InputError
 from ..io import Campaign, HysteresisRun
 from . import _transform as tr
-from .._segments import fit_ramps, monotone_segments
+from .._segments import fit_ramps
 from ._denoise import denoise_torque
+from ._noise_classes import ramp_amplitudes
 from ._prior import build_priors
 from ._torque_error import angle_variance_from_torque_error
 
@@ -82,14 +83,10 @@ CYCLE_NOISE_MIN_SHARE = 0.05  # smallest noise shape (share of the largest cycle
 def cycle_amplitude_shape(torque_Nm) -> np.ndarray:
     """Per-sample noise shape in (0, 1] of a hysteresis record: the peak |torque| of the monotone
     ramp a sample lies on over the record's largest, floored at ``CYCLE_NOISE_MIN_SHARE``."""
-    tau = np.asarray(torque_Nm, float)
-    smooth, segments = monotone_segments(tau, reversal_fraction=0.05)
-    amp = np.zeros(tau.size)
-    for a, b, _ in segments:
-        amp[a:b + 1] = np.maximum(amp[a:b + 1], max(abs(smooth[a]), abs(smooth[b])))
+    amp = ramp_amplitudes(torque_Nm)
     top = float(np.max(amp)) if amp.size else 0.0
     if not top > 0:
-        return np.ones(tau.size)
+        return np.ones(amp.size)
     return np.maximum(amp / top, CYCLE_NOISE_MIN_SHARE)
 
 

@@ -22,7 +22,7 @@ from .._errors import InputError
 from .._provenance import provenance
 from ..fit import NoiseOptions, build_problem, fit_map
 from ..fit._map import nested_start
-from ..fit._noise_classes import class_shares, refit_with_class_noise
+from ..fit._noise_classes import _residuals, class_shares, refit_with_class_noise
 from ..fit._misfit import MISFIT_RHO, misfit_correlated_runs, widen_for_misfit
 from ..io import Campaign, decimate
 from ..model import SteppedBacklash, model_with_effects
@@ -130,11 +130,6 @@ def _values_over_draws(problem, u_batch, linear: bool):
     if linear:
         return jax.vmap(problem.full_values)(u_batch)
     return jax.vmap(lambda u: problem.physics_values(u[:problem.n_nonlinear]))(u_batch)
-
-
-@eqx.filter_jit
-def _residuals(problem, u):
-    return problem.residuals(u)  # jitted: eagerly, every scan compiles anew on each call
 
 
 @in_float64
