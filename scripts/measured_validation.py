@@ -355,6 +355,7 @@ def posterior_text(sampler: str, laplace_shape: str) -> str:
 
 
 def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise: str, laplace_shape: str = "gaussian") -> str:
+    rows = sorted(rows, key=lambda r: r["unit"])  # the table in unit order, whatever order they were fitted in
     lines = [
         f"Measured loops ({SOURCE}). Model: base + {json.dumps(effects)}, "
         f"{NOISE_TEXT[noise]}, posterior by {posterior_text(sampler, laplace_shape)}, fitted to each file without its last large ramp (block means of {decimate} samples). "

@@ -106,6 +106,8 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "gap_preload_torque": (log(0.1 * rated), 1.5),
         "gap_step_logits": (0.0, 1.5),  # the steps' shares: even a priori, any one up to ~e^3 times another
         "series_share": (log(0.2 / 0.8), 1.5),  # logit-normal around φ = 0.2
+        "preload_stiffening": (0.0, 1.5),  # logit-normal around s = 0.5: a second path as stiff as the first
+        "preload_lift_torque": (log(0.1 * rated), 1.5),
         "creep_stiffness": (log(5 * k0), 2.0),
         "creep_time": (log(0.1 * max(durations)), 2.0),
         "viscous_friction": (log(0.01 * rated / v_max), 2.5),

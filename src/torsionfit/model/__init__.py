@@ -16,6 +16,7 @@ from ._compliance import (
     AsymmetricCompliance as AsymmetricCompliance,
     LinearCompliance as LinearCompliance,
     PowerLawCompliance as PowerLawCompliance,
+    PreloadedCompliance as PreloadedCompliance,
     ThreeSegmentCompliance as ThreeSegmentCompliance,
 )
 from ._creep import Creep as Creep

@@ -101,3 +101,31 @@ class AsymmetricCompliance(AbstractCompliance):
     def __call__(self, params, torque_Nm):
         alpha = params["compliance_asymmetry"]
         return self.base(params, torque_Nm) * (1.0 + alpha * jnp.tanh(torque_Nm / self.switch_width_Nm))
+
+
+class PreloadedCompliance(AbstractCompliance):
+    """A second load path held closed by a preload, as in split-pinwheel (anti-backlash)
+    designs: below the lift-off torque T_s both preloaded halves carry the load in parallel and
+    the unit is stiffer; beyond it one half lifts off and the base curve's slope returns:
+
+        ``θ = C(τ) − s·C(clip(τ, −T_s, T_s))``
+
+    Inside ±T_s the compliance is (1 − s)·C (a parallel path of r·K on a spring K gives
+    s = r/(1 + r)); beyond, the base slope C′(τ), the twist continuous at ±T_s. Odd and
+    increasing for 0 ≤ s < 1; s = 0 is the base curve. Unlike :class:`PreloadedBacklash`,
+    which holds the *gap* closed below a preload, this changes the *spring*."""
+
+    base: AbstractCompliance
+
+    def parameters(self):
+        return self.base.parameters() + (
+            Parameter("preload_stiffening", "unit_interval", "1",
+                      "share s of the compliance the preloaded second path takes away below the lift-off torque",
+                      vanishes_at_zero=True),
+            Parameter("preload_lift_torque", "positive", "N·m", "torque T_s beyond which the preloaded path lifts off"),
+        )
+
+    def __call__(self, params, torque_Nm):
+        lift = params["preload_lift_torque"]
+        inside = jnp.clip(torque_Nm, -lift, lift)
+        return self.base(params, torque_Nm) - params["preload_stiffening"] * self.base(params, inside)

@@ -3,7 +3,7 @@
 from .._errors import InputError
 from ._backlash import DEFAULT_GAP_STEPS, ClosedGapBacklash, FrictionClosureBacklash, PreloadedBacklash, SmoothBacklash, SteppedBacklash
 from ._campaign_model import CampaignModel
-from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, ThreeSegmentCompliance
+from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, PreloadedCompliance, ThreeSegmentCompliance
 from ._creep import Creep
 from ._drift import SHAPES as DRIFT_SHAPES
 from ._friction import DahlFriction, MaxwellSlipFriction
@@ -20,7 +20,7 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     DESIGN §3: ``stiffness_nonlinearity``, ``rate_dependence``, ``kinematic_error``,
     ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``,
     ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``, ``gap_preload``, ``gap_lag``,
-    ``series_compliance``), as a bench file's ``[effects]``
+    ``series_compliance``, ``preload_stiffening``), as a bench file's ``[effects]``
     table or a user's switches give them. ``fitted``: the model a fit estimates, whose gap
     is :class:`FrictionClosureBacklash` when no run is a hysteresis run (the same curve, with the
     share of the gap closed at no load in place of a closing torque the data cannot see), or
@@ -34,6 +34,8 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         compliance = PowerLawCompliance()
     elif nonlin not in (None, False):
         raise InputError(f"[effects].stiffness_nonlinearity: expected 'three_segment' or 'power_law', got {nonlin!r}")
+    # the preloaded second path changes the spring itself; an asymmetry scales the result
+    compliance = _switched("preload_stiffening", effects.get("preload_stiffening", False), lambda: PreloadedCompliance(compliance)) or compliance
     asym = effects.get("asymmetry")
     if asym:
         width = asym.get("switch_width_Nm", 0.05 * rated_torque_Nm) if isinstance(asym, dict) else 0.05 * rated_torque_Nm
