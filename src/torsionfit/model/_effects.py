@@ -35,8 +35,8 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     elif nonlin not in (None, False):
         raise InputError(f"[effects].stiffness_nonlinearity: expected 'three_segment' or 'power_law', got {nonlin!r}")
     # the preloaded second path changes the spring itself; an asymmetry scales the result
-    if _switched("preload_stiffening", effects.get("preload_stiffening", False), lambda: True):
-        compliance = PreloadedCompliance(compliance)
+    preloaded = _switched("preload_stiffening", effects.get("preload_stiffening", False), lambda: PreloadedCompliance(compliance))
+    compliance = compliance if preloaded is None else preloaded
     asym = effects.get("asymmetry")
     if asym:
         width = asym.get("switch_width_Nm", 0.05 * rated_torque_Nm) if isinstance(asym, dict) else 0.05 * rated_torque_Nm
