@@ -44,9 +44,15 @@ def test_nuts_follows_the_lost_motion_ridge_of_a_te_export(tmp_path):
     lp_map = float(_densities(problem, coords, jnp.zeros((1, problem.dim)))[0])
     assert np.all(lp > lp_map - 4 * problem.dim), lp - lp_map
     res = run_nuts(problem, m, seed=0, n_chains=4, n_warmup=150, initial_draws=100, max_draws=100, progress=False)
+    assert res.n_divergent == 0
+    # Dual averaging over 150 warm-up steps leaves the chains' step sizes up to ~2.2x apart on
+    # this posterior (seeds 0-2: 1.1-2.2x) while their trajectories stay alike; a chain caught
+    # where the ridge narrows adapts a step many times smaller and runs the deepest trees
     steps = np.asarray(res.step_size)
-    assert res.n_divergent == 0 and steps.max() < 2 * steps.min(), steps
-    # 16.5 leapfrog steps per draw here, with the gap's closing share sampled as logit q or as
-    # log β − logit q alike: on block means of 8 the no-load runs resolve that share too coarsely
-    # for its funnel to matter; at full resolution it does (docs/benchmarks.md, the TE campaign)
-    assert float(np.mean(res.n_leapfrog)) < 32, float(np.mean(res.n_leapfrog))
+    assert steps.max() < 4 * steps.min(), steps
+    # 14-22 leapfrog steps per draw on average here (seeds 0-2; 14-29 per chain), with the gap's
+    # closing share sampled as logit q or as log β − logit q alike: on block means of 8 the
+    # no-load runs resolve that share too coarsely for its funnel to matter; at full resolution
+    # it does (docs/benchmarks.md, the TE campaign). Before the lost-motion coordinates: hundreds
+    per_chain = np.mean(np.asarray(res.n_leapfrog), axis=0)
+    assert per_chain.mean() < 32 and per_chain.max() < 64, per_chain
