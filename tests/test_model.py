@@ -227,6 +227,23 @@ def test_preloaded_gap_is_the_smooth_gap_without_preload_and_closed_within_it():
     np.testing.assert_allclose(half, [-0.25 * params["gap"], 0.25 * params["gap"]], rtol=1e-9)
 
 
+def test_residual_play_is_the_preloaded_gap_plus_a_small_centred_one():
+    """A preloaded gap with a residual play: w → 0 is the preloaded gap; a ±4 N·m cycle inside
+    the preload crosses the residual share w·β alone, in a jump of width ~τ₀ at zero torque; a
+    cycle beyond it crosses all of β."""
+    params = dict(gap=2e-3, gap_torque=0.3, gap_preload_torque=6.0, gap_residual_share=1e-12, gap_residual_torque=0.05)
+    tau = jnp.linspace(-20.0, 20.0, 4001)
+    np.testing.assert_allclose(m.ResidualPlayBacklash()(params, tau), m.PreloadedBacklash()(params, tau), rtol=0, atol=1e-14)
+    params["gap_residual_share"] = 0.25
+    theta = np.asarray(m.ResidualPlayBacklash()(params, tau))
+    small = np.abs(np.asarray(tau)) <= 4.0
+    assert np.ptp(theta[small]) == pytest.approx(0.25 * params["gap"], rel=1e-4)
+    near_zero = np.abs(np.asarray(tau)) <= 0.2  # four τ₀: the residual play is crossed there
+    assert np.ptp(theta[near_zero]) > 0.99 * 0.25 * params["gap"]
+    assert theta[-1] - theta[0] == pytest.approx(params["gap"], rel=1e-9)
+    assert np.all(np.diff(theta) >= -1e-15)  # increasing, to rounding where it saturates
+
+
 def test_gap_preload_switch():
     """``gap_preload`` gives the preloaded gap to loops, and stops with one line on a campaign
     without a loop or with a value that is not a switch."""
@@ -235,8 +252,14 @@ def test_gap_preload_switch():
     assert "gap_preload_torque" in [p.name for p in model.parameters()]
     with pytest.raises(InputError, match=r"gap_preload: needs a hysteresis run"):
         m.model_with_effects(("transmission_error",), {"gap_preload": True}, 20.0, fitted=True)
-    with pytest.raises(InputError, match=r"gap_preload: expected true or false"):
-        m.model_with_effects(("hysteresis",), {"gap_preload": "yes"}, 20.0)
+    model = m.model_with_effects(("hysteresis",), {"gap_preload": {"residual_play": True}}, 20.0, fitted=True)
+    assert isinstance(model.backlash, m.ResidualPlayBacklash)
+    assert {"gap_residual_share", "gap_residual_torque"} <= {p.name for p in model.parameters()}
+    for bad in ("yes", {"residual": True}, {"residual_play": 1}):
+        with pytest.raises(InputError, match=r"gap_preload: expected true, false or \{residual_play = true\}"):
+            m.model_with_effects(("hysteresis",), {"gap_preload": bad}, 20.0)
+    with pytest.raises(InputError, match=r"gap_steps: needs a hysteresis run and cannot be combined with gap_preload"):
+        m.model_with_effects(("hysteresis",), {"gap_preload": {"residual_play": True}, "gap_steps": {"span_Nm": 4.0}}, 20.0)
 
 
 def test_stepped_gap():
@@ -248,7 +271,7 @@ def test_stepped_gap():
     params = dict(gap=2e-3, gap_torque=0.3, gap_step_logits=jnp.array([0.5, -1.0]))
     theta = np.asarray(b(params, tau))
     assert theta[-1] - theta[0] == pytest.approx(params["gap"], rel=1e-9)
-    assert np.all(np.diff(theta) >= 0)
+    assert np.all(np.diff(theta) >= -1e-15)  # increasing, to rounding where it saturates
     # the steps at −4, 0, +4 N·m: the twist across each is its share of the gap
     shares = np.asarray(b.shares(params))
     across = np.diff(np.asarray(b(params, jnp.array([-30.0, -2.0, 2.0, 30.0]))))

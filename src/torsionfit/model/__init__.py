@@ -7,6 +7,7 @@ from ._backlash import (
     FrictionClosureBacklash as FrictionClosureBacklash,
     NoBacklash as NoBacklash,
     PreloadedBacklash as PreloadedBacklash,
+    ResidualPlayBacklash as ResidualPlayBacklash,
     SmoothBacklash as SmoothBacklash,
     SteppedBacklash as SteppedBacklash,
 )

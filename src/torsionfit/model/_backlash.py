@@ -94,6 +94,29 @@ class PreloadedBacklash(AbstractBacklash):
         return 0.25 * params["gap"] * (jnp.tanh((mesh_torque_Nm - tp) / w) + jnp.tanh((mesh_torque_Nm + tp) / w))
 
 
+class ResidualPlayBacklash(AbstractBacklash):
+    """A preloaded gap with a residual play: :class:`PreloadedBacklash` beside a small share w
+    of the gap that the preload does not take up and that is crossed at zero mesh torque, over
+    its own (sharper) torque τ₀:
+
+        ``θ_g = (wβ/2)·tanh(τ_m/τ₀) + ((1 − w)β/4)·[tanh((τ_m − T_p)/τ_β) + tanh((τ_m + T_p)/τ_β)]``
+
+    The measured preloaded split-pinwheel loops show both: their small play ramps (±4 N·m)
+    cross a small gap in a jump near zero torque, their large ramps a wide one near the
+    preload. β is the whole lost motion; w → 0 is :class:`PreloadedBacklash`."""
+
+    def parameters(self):
+        return PreloadedBacklash().parameters() + (
+            Parameter("gap_residual_share", "unit_interval", "1", "share w of the gap the preload does not take up"),
+            Parameter("gap_residual_torque", "positive", "N·m", "mesh torque τ₀ over which the residual play closes"),
+        )
+
+    def __call__(self, params, mesh_torque_Nm):
+        w = params["gap_residual_share"]
+        residual = 0.5 * w * params["gap"] * jnp.tanh(mesh_torque_Nm / params["gap_residual_torque"])
+        return residual + (1.0 - w) * PreloadedBacklash()(params, mesh_torque_Nm)
+
+
 #: steps of a stepped gap when it does not say: odd, so that one step sits at zero mesh torque.
 #: With six (the Prandtl–Ishlinskii reference's gap columns) the steps sit at ±0.8, ±2.4 and
 #: ±4 N·m of a ±4 N·m span, a single gap crossing at zero is not a case of the model, and on the

@@ -1,7 +1,8 @@
 """Switching model extensions on by name (the effects catalog's names, DESIGN §3)."""
 
 from .._errors import InputError
-from ._backlash import DEFAULT_GAP_STEPS, ClosedGapBacklash, FrictionClosureBacklash, PreloadedBacklash, SmoothBacklash, SteppedBacklash
+from ._backlash import (DEFAULT_GAP_STEPS, ClosedGapBacklash, FrictionClosureBacklash, PreloadedBacklash, ResidualPlayBacklash,
+                        SmoothBacklash, SteppedBacklash)
 from ._campaign_model import CampaignModel
 from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, PreloadedCompliance, ThreeSegmentCompliance
 from ._creep import Creep
@@ -58,19 +59,17 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         opts = sp if isinstance(sp, dict) else {}
         speed = SpeedDependence(viscous=bool(opts.get("viscous", True)), compliance_order=int(opts.get("compliance_order", 0)))
     closed = fitted and "hysteresis" not in tuple(run_kinds)
-    preload = effects.get("gap_preload", False)
-    if not isinstance(preload, bool):
-        raise InputError(f"[effects].gap_preload: expected true or false, got {preload!r}")
-    if preload and closed:
+    preload = _gap_preload(effects.get("gap_preload", False))
+    if preload is not None and closed:
         raise InputError("[effects].gap_preload: needs a hysteresis run (a TE run sees the gap closed or at its no-load share, never the preload)")
     steps = _gap_steps(effects.get("gap_steps", False))
-    if steps is not None and (preload or closed):
+    if steps is not None and (preload is not None or closed):
         raise InputError("[effects].gap_steps: needs a hysteresis run and cannot be combined with gap_preload")
     if closed:
         loaded = te_loads_Nm is not None and len(te_loads_Nm) > 0 and min(abs(float(t)) for t in te_loads_Nm) > 0
         backlash = ClosedGapBacklash() if loaded else FrictionClosureBacklash()
     else:
-        backlash = PreloadedBacklash() if preload else steps if steps is not None else SmoothBacklash()
+        backlash = preload if preload is not None else steps if steps is not None else SmoothBacklash()
     return CampaignModel(
         backlash=backlash,
         temperature=_temperature(effects.get("temperature_dependence", False)),
@@ -88,6 +87,18 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         torque_offset=bool(effects.get("torque_offset")),
         scan=scan,
     )
+
+
+def _gap_preload(value):
+    """``gap_preload``: false, true (:class:`PreloadedBacklash`) or {residual_play = true}
+    (:class:`ResidualPlayBacklash`: a small share of the gap crossed at zero torque besides)."""
+    if value is False or value is None:
+        return None
+    if value is True:
+        return PreloadedBacklash()
+    if isinstance(value, dict) and set(value) <= {"residual_play"} and isinstance(value.get("residual_play", False), bool):
+        return ResidualPlayBacklash() if value.get("residual_play", False) else PreloadedBacklash()
+    raise InputError(f"[effects].gap_preload: expected true, false or {{residual_play = true}}, got {value!r}")
 
 
 def _gap_steps(value):
