@@ -57,6 +57,28 @@ def test_block_reduction_matches_the_decimated_campaign(tmp_path):
         mv._block(whole.runs[0].angle_rad, 16, len(small.runs[0]) + 1)
 
 
+def test_the_data_compliance_carries_its_cycle_to_cycle_scatter(tmp_path):
+    from torsionfit.io import decimate, load_campaign
+    from torsionfit.metrics import loading_compliance_from_arrays
+
+    unit = "split-pccf-initial-pos1"
+    run = decimate(load_campaign(mv.manifest(unit, None, tmp_path)), 16).runs[0]
+    t, tau, y = np.asarray(run.time_s), np.asarray(run.torque_Nm), np.asarray(run.angle_rad)
+    row = {"unit": unit, **mv.data_metrics(t, tau, y, unit)}
+    whole = np.array(loading_compliance_from_arrays(t, tau, y)) / mv.DEG
+    np.testing.assert_allclose(row["compliance_data_deg_per_Nm"], whole, rtol=1e-12)
+    cycles = row["compliance_data_cycles_deg_per_Nm"]
+    # three ramps 0 → +40 → −40 → 0: two whole increasing branches, three decreasing
+    assert (len(cycles["pos"]), len(cycles["neg"])) == (2, 3)
+    # the branches' mean is the mean branch's slope, within the branches' own spread
+    for side, value in zip(("pos", "neg"), whole):
+        assert abs(np.mean(cycles[side]) - value) <= max(np.ptp(cycles[side]), 0.01 * value)
+    se = mv.compliance_se(row)
+    assert 0 < se < 0.05 * np.mean(whole)
+    assert mv.compliance_se({"compliance_data_cycles_deg_per_Nm": {"pos": [0.1], "neg": [0.1, 0.11]}}) is None
+    assert mv.compliance_se({}) is None
+
+
 def test_split_loops_turn_with_the_torque_at_the_peaks_but_not_across_the_gap():
     """Why the catalog has a damped gap crossing and no lag of the whole torque: on every split
     loop the twist reaches each large ramp's extreme within 0.1 s of the torque's (nothing lags

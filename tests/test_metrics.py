@@ -16,6 +16,7 @@ from torsionfit.metrics import (
     cycle_classes,
     format_metrics_table,
     hysteresis_metrics,
+    loading_compliance_cycles,
     loading_compliance_from_arrays,
     loading_fit,
     loop_branches,
@@ -669,6 +670,29 @@ def test_play_is_robust_to_noise_quantisation_and_a_torque_oscillation_in_the_ga
     assert play_from_arrays(time, measured, theta_q) == pytest.approx(EXPECTED_PLAY, rel=0.03)
     pos, neg = loading_compliance_from_arrays(time, measured, theta_q)
     assert (pos, neg) == pytest.approx((1 / K_POS, 1 / K_NEG), rel=0.02)
+
+
+def test_loading_compliances_branch_by_branch_give_the_cycle_to_cycle_scatter():
+    time, tau = bench_protocol()
+    theta = bench_angle(tau)
+    large = cycle_classes(time, tau, theta).largest
+    pos, neg = loading_compliance_cycles(large, EXPECTED_PLAY)
+    # 2 increasing and 3 decreasing large branches; identical cycles give one compliance
+    assert (pos.size, neg.size) == (2, 3)
+    assert pos == pytest.approx(np.full(2, 1 / K_POS), rel=1e-3)
+    assert neg == pytest.approx(np.full(3, 1 / K_NEG), rel=1e-3)
+    # a bench that softens as it runs (compliance +10 % over the record): the branches'
+    # compliances grow in time order and their mean is the class's
+    soften = 1.0 + 0.1 * time / time[-1]
+    mesh = play_operator(tau, T_PF)
+    theta = soften * np.where(mesh >= 0, mesh / K_POS, mesh / K_NEG) + 0.5 * GAP * np.tanh(mesh / EPS_GAP)
+    classes = cycle_classes(time, tau, theta)
+    pos, neg = loading_compliance_cycles(classes.largest, play_from_arrays(time, tau, theta))
+    assert np.all(np.diff(pos) > 0) and np.all(np.diff(neg) > 0)
+    assert pos[-1] / pos[0] > 1.02
+    fit = loading_fit(classes.largest, play_from_arrays(time, tau, theta))
+    assert pos.mean() == pytest.approx(fit.compliance_pos, rel=0.005)
+    assert neg.mean() == pytest.approx(fit.compliance_neg, rel=0.005)
 
 
 def test_a_run_of_one_amplitude_class_says_so():

@@ -5,7 +5,8 @@
   lost motion, backlash, dissipated energy of one hysteresis run's full-range loop;
 - :func:`play_from_arrays` / :func:`loading_compliance_from_arrays` — play (loop width at zero
   torque of the smallest cycles) and loading-branch compliances of the largest cycles, from
-  plain arrays (measured or simulated); :func:`cycle_classes` groups a run's cycles by amplitude;
+  plain arrays (measured or simulated); :func:`cycle_classes` groups a run's cycles by amplitude,
+  :func:`loading_compliance_cycles` gives the loading compliances branch by branch;
 - :func:`hysteresis_run_metrics` — all of these for one run, with a note for each metric that
   cannot be computed;
 - :func:`te_metrics` — K_d (180°), K_t (revolution mean) and TE levels of one TE run;
@@ -26,6 +27,7 @@ from ._hysteresis import (
     cycle_classes as cycle_classes,
     hysteresis_metrics as hysteresis_metrics,
     hysteresis_run_metrics as hysteresis_run_metrics,
+    loading_compliance_cycles as loading_compliance_cycles,
     loading_compliance_from_arrays as loading_compliance_from_arrays,
     loading_fit as loading_fit,
     loop_branches as loop_branches,

@@ -311,17 +311,34 @@ class AmplitudeClass:
 
     ``amplitude_Nm`` is the median over its branches of min(|trough|, peak) of the smoothed
     torque; ``upper_rad`` the mean of its decreasing-torque branches, ``lower_rad`` the mean of
-    its increasing-torque branches, on ``torque_Nm`` (the torque range all its branches share).
+    its increasing-torque branches, on ``torque_Nm`` (the torque range all its branches share);
+    ``upper_each_rad`` / ``lower_each_rad`` the branches one by one (rows in time order).
     ``segment_ids`` index :attr:`CycleClasses.segments`.
     """
 
     amplitude_Nm: float
     torque_Nm: np.ndarray
-    upper_rad: np.ndarray
-    lower_rad: np.ndarray
-    n_upper: int
-    n_lower: int
+    upper_each_rad: np.ndarray
+    lower_each_rad: np.ndarray
     segment_ids: tuple[int, ...]
+
+    @property
+    def upper_rad(self) -> np.ndarray:
+        """Mean decreasing-torque branch (rad)."""
+        return self.upper_each_rad.mean(axis=0)
+
+    @property
+    def lower_rad(self) -> np.ndarray:
+        """Mean increasing-torque branch (rad)."""
+        return self.lower_each_rad.mean(axis=0)
+
+    @property
+    def n_upper(self) -> int:
+        return int(self.upper_each_rad.shape[0])
+
+    @property
+    def n_lower(self) -> int:
+        return int(self.lower_each_rad.shape[0])
 
     @property
     def width_rad(self) -> np.ndarray:
@@ -434,10 +451,8 @@ def cycle_classes(
             AmplitudeClass(
                 amplitude_Nm=amp,
                 torque_Nm=grid,
-                upper_rad=curves(upper_ids).mean(axis=0),
-                lower_rad=curves(lower_ids).mean(axis=0),
-                n_upper=len(upper_ids),
-                n_lower=len(lower_ids),
+                upper_each_rad=curves(upper_ids),
+                lower_each_rad=curves(lower_ids),
                 segment_ids=tuple(ids),
             )
         )
@@ -510,6 +525,45 @@ def play_of(cls: AmplitudeClass) -> float:
     return float(np.interp(0.0, cls.torque_Nm, cls.width_rad))
 
 
+def _side_fit(
+    tau: np.ndarray, theta: np.ndarray, half: float, top: float, where: str, amplitude: float, name: str
+) -> tuple[float, float, float]:
+    """(slope, start, end) of one loading branch mirrored to τ > 0: ``tau`` increasing, ``theta``
+    the angle from the loop midpoint at zero torque (rad), fitted from the first torque beyond
+    which the branch stays past ``half`` the play up to ``top`` × its peak (:func:`loading_fit`)."""
+    peak = float(tau[-1])
+    end = top * peak
+    part = (tau > 0) & (tau <= end)
+    t, th = tau[part], theta[part]
+    inside = np.flatnonzero(th < half)
+    first = 0 if inside.size == 0 else inside[-1] + 1
+    if peak <= 0 or first >= t.size or t[first] > LOADING_FIT_MAX_START * peak:
+        reached = (
+            f"never gets past half the play ({half * 180 / math.pi:.3g}°) below "
+            f"{top:g} × its peak {peak:.3g} N·m"
+            if first >= t.size
+            else f"gets past half the play ({half * 180 / math.pi:.3g}°) only at "
+            f"{t[first]:.3g} N·m, above {LOADING_FIT_MAX_START:g} × its peak {peak:.3g} N·m"
+        )
+        raise InputError(
+            f"hysteresis run {name!r}: the {where} loading branch of the "
+            f"±{amplitude:.3g} N·m cycles {reached}; expected a loading range beyond "
+            f"the play for a slope"
+        )
+    t, th = t[first:], th[first:]
+    if t.size < 3:
+        raise InputError(
+            f"hysteresis run {name!r}: too few torque grid points on the {where} loading branch"
+        )
+    slope = float(np.polyfit(t, th, 1)[0])
+    if not slope > 0:
+        raise InputError(
+            f"hysteresis run {name!r}: the {where} loading branch does not twist further with "
+            f"torque beyond the play (slope {slope:.3g} rad/N·m); check the angle sign"
+        )
+    return slope, float(t[0]), float(t[-1])
+
+
 def loading_fit(
     cls: AmplitudeClass, play_rad: float, *, name: str = "run", top: float = LOADING_FIT_TOP
 ) -> LoadingFit:
@@ -527,44 +581,10 @@ def loading_fit(
     grid, upper, lower = cls.torque_Nm, cls.upper_rad, cls.lower_rad
     centre = 0.5 * float(np.interp(0.0, grid, upper) + np.interp(0.0, grid, lower))
     half = 0.5 * max(float(play_rad), 0.0)
-    out = {}
-    # + side: increasing-torque branch, τ > 0; − side: decreasing branch mirrored to τ > 0.
-    for side, tau, theta in (
-        ("pos", grid, lower - centre),
-        ("neg", -grid[::-1], -(upper[::-1] - centre)),
-    ):
-        peak = float(tau[-1])
-        where = "positive" if side == "pos" else "negative"
-        end = top * peak
-        part = (tau > 0) & (tau <= end)
-        t, th = tau[part], theta[part]
-        inside = np.flatnonzero(th < half)
-        first = 0 if inside.size == 0 else inside[-1] + 1
-        if peak <= 0 or first >= t.size or t[first] > LOADING_FIT_MAX_START * peak:
-            reached = (
-                f"never gets past half the play ({half * 180 / math.pi:.3g}°) below "
-                f"{top:g} × its peak {peak:.3g} N·m"
-                if first >= t.size
-                else f"gets past half the play ({half * 180 / math.pi:.3g}°) only at "
-                f"{t[first]:.3g} N·m, above {LOADING_FIT_MAX_START:g} × its peak {peak:.3g} N·m"
-            )
-            raise InputError(
-                f"hysteresis run {name!r}: the {where} loading branch of the "
-                f"±{cls.amplitude_Nm:.3g} N·m cycles {reached}; expected a loading range beyond "
-                f"the play for a slope"
-            )
-        t, th = t[first:], th[first:]
-        if t.size < 3:
-            raise InputError(
-                f"hysteresis run {name!r}: too few torque grid points on the {where} loading branch"
-            )
-        slope = float(np.polyfit(t, th, 1)[0])
-        if not slope > 0:
-            raise InputError(
-                f"hysteresis run {name!r}: the {where} loading branch does not twist further with "
-                f"torque beyond the play (slope {slope:.3g} rad/N·m); check the angle sign"
-            )
-        out[side] = (slope, float(t[0]), float(t[-1]))
+    out = {
+        "pos": _side_fit(grid, lower - centre, half, top, "positive", cls.amplitude_Nm, name),
+        "neg": _side_fit(-grid[::-1], -(upper[::-1] - centre), half, top, "negative", cls.amplitude_Nm, name),
+    }
     return LoadingFit(
         compliance_pos=out["pos"][0],
         compliance_neg=out["neg"][0],
@@ -612,6 +632,31 @@ def loading_compliance_from_arrays(
     play = play_of(classes.smallest) if play_rad is None else float(play_rad)
     fit = loading_fit(classes.largest, play, name=name)
     return fit.compliance_pos, fit.compliance_neg
+
+
+def loading_compliance_cycles(
+    cls: AmplitudeClass, play_rad: float, *, name: str = "run", top: float = LOADING_FIT_TOP
+) -> tuple[np.ndarray, np.ndarray]:
+    """Loading compliances branch by branch (rad/N·m): ``(positive, negative)``, the + side of
+    each increasing-torque branch of ``cls`` and the − side of each decreasing-torque branch,
+    in time order.
+
+    Each branch is fitted as in :func:`loading_fit`, against the class's own loop midpoint at
+    zero torque and the same play, so the branches differ only by what the bench did from
+    cycle to cycle. Their spread is the repeatability of :func:`loading_fit`'s compliances:
+    ``std(positive) / √n`` approximates the standard error of the class's + compliance (a
+    slope is linear in the angles over a fixed range; here each branch starts where it has
+    crossed the play).
+    """
+    grid = cls.torque_Nm
+    centre = 0.5 * float(np.interp(0.0, grid, cls.upper_rad) + np.interp(0.0, grid, cls.lower_rad))
+    half = 0.5 * max(float(play_rad), 0.0)
+    pos = [_side_fit(grid, lower - centre, half, top, "positive", cls.amplitude_Nm, name)[0] for lower in cls.lower_each_rad]
+    neg = [
+        _side_fit(-grid[::-1], -(upper[::-1] - centre), half, top, "negative", cls.amplitude_Nm, name)[0]
+        for upper in cls.upper_each_rad
+    ]
+    return np.asarray(pos), np.asarray(neg)
 
 
 # ----------------------------------------------------------------------------- metrics
