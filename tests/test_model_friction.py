@@ -137,5 +137,53 @@ def test_a_lagged_load_lowers_the_level_at_the_peak_and_keeps_it_past_the_revers
         f_lag.friction_torque(lagged, jnp.asarray(tau))
     model = m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"lag": True}}, 20.0)
     assert model.friction.load_dependent and model.friction.load_lag
-    with pytest.raises(Exception, match=r"load_dependent_friction: expected true, false or \{lag = true\}"):
+    with pytest.raises(Exception, match=r"load_dependent_friction: expected true, false or a table \{lag = true"):
         m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"lag": "yes"}}, 20.0)
+
+
+def _breakaway_span(friction, params, peak):
+    """Torque span after the reversal at +peak from the first element's break-away to the
+    last's (an element breaks away where its mesh share starts to move)."""
+    tau = _triangle([peak, peak], 2000)
+    shares = np.asarray(friction.mesh_shares(params, jnp.asarray(tau)))
+    top = int(np.argmax(tau[:6000]))
+    after = shares[top:top + 2000]
+    moved = np.abs(after - after[0]) > 1e-9
+    assert moved.any(axis=0).all(), "an element never broke away on the way down"
+    breaks = tau[top + np.argmax(moved, axis=0)]
+    return float(breaks.max() - breaks.min())
+
+
+def test_a_common_load_growth_keeps_the_breakaway_spread_and_the_mean_level():
+    """``load_dependent_friction = {growth = "common"}``: the load adds μ|τ| to every element's
+    level instead of scaling each (R_k = r_k + μ|τ|). The spread of break-away levels in N·m
+    stays as the load grows — gradual pre-sliding after a small reversal, a sharp knee after a
+    large one — while the mean level, T_f + μ|τ|, is the proportional growth's."""
+    p = {"friction_torque": 1.0, "breakaway_spread": 0.6, "friction_load_coefficient": 0.3}
+    prop = m.MaxwellSlipFriction(n_elements=6, load_dependent=True)
+    common = m.MaxwellSlipFriction(n_elements=6, load_dependent=True, load_growth="common")
+    levels = np.asarray(prop.breakaway_levels(p))
+    small_p, large_p = _breakaway_span(prop, p, 10.0), _breakaway_span(prop, p, 40.0)
+    small_c, large_c = _breakaway_span(common, p, 10.0), _breakaway_span(common, p, 40.0)
+    # common: element k sticks after the reversal at P until τ − P + R_k(P) = −R_k(τ), i.e.
+    # τ(1 + μ) = P(1 − μ) − 2r_k (every break-away at τ > 0 here): a span 2(r_max − r_min)/(1 + μ)
+    # whatever the peak
+    expected = 2 * (levels[-1] - levels[0]) / 1.3
+    assert small_c == pytest.approx(expected, rel=0.02) and large_c == pytest.approx(expected, rel=0.02)
+    # proportional: each level scales with 1 + μ|τ|/T_f, so the span grows with the peak
+    assert large_p > 2.5 * small_p and large_p > 5 * large_c
+    # the same mean level while sliding: far from the reversal the mesh torques agree
+    tau = _triangle([40.0, 40.0])
+    mesh_p = tau - np.asarray(prop.friction_torque(p, jnp.asarray(tau)))
+    mesh_c = tau - np.asarray(common.friction_torque(p, jnp.asarray(tau)))
+    top = int(np.argmax(tau[:1200]))
+    np.testing.assert_allclose(mesh_c[top + 390], mesh_p[top + 390], rtol=0.02)
+    model = m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"lag": True, "growth": "common"},
+                                                   "distributed_friction": True}, 20.0)
+    assert model.friction.load_growth == "common" and model.friction.load_lag
+    with pytest.raises(Exception, match="growth = 'common' needs distributed_friction"):
+        m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"growth": "common"}}, 20.0)
+    with pytest.raises(Exception, match="growth one of proportional, common"):
+        m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"growth": "sum"}, "distributed_friction": True}, 20.0)
+    with pytest.raises(ValueError, match="load_growth must be one of"):
+        m.MaxwellSlipFriction(load_growth="sum")

@@ -7,7 +7,7 @@ from ._campaign_model import CampaignModel
 from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, PreloadedCompliance, ThreeSegmentCompliance
 from ._creep import Creep
 from ._drift import SHAPES as DRIFT_SHAPES
-from ._friction import DahlFriction, MaxwellSlipFriction
+from ._friction import LOAD_GROWTH, DahlFriction, MaxwellSlipFriction
 from ._gap_lag import GapLag
 from ._kinematic import KinematicHarmonics
 from ._series import SeriesCompliance
@@ -124,18 +124,23 @@ def _friction(effects: dict):
     """Dahl friction, or Maxwell-slip elements (``distributed_friction``); either with a
     level growing with the load (``load_dependent_friction``)."""
     load = effects.get("load_dependent_friction", False)
-    lag = False
-    if isinstance(load, dict) and set(load) <= {"lag"} and isinstance(load.get("lag", False), bool):
-        load, lag = True, load.get("lag", False)
+    lag, growth = False, "proportional"
+    if (isinstance(load, dict) and set(load) <= {"lag", "growth"} and isinstance(load.get("lag", False), bool)
+            and load.get("growth", growth) in LOAD_GROWTH):
+        load, lag, growth = True, load.get("lag", False), load.get("growth", growth)
     if not isinstance(load, bool):
-        raise InputError(f"[effects].load_dependent_friction: expected true, false or {{lag = true}}, got {load!r}")
+        raise InputError(f"[effects].load_dependent_friction: expected true, false or a table {{lag = true, growth = "
+                         f"\"common\"}} (growth one of {', '.join(LOAD_GROWTH)}), got {load!r}")
     dist = effects.get("distributed_friction", False)
     if dist is False or dist is None:
+        if growth != "proportional":
+            raise InputError(f"[effects].load_dependent_friction: growth = {growth!r} needs distributed_friction "
+                             f"(one Dahl element has no spread of levels to keep)")
         return DahlFriction(load_dependent=load, load_lag=lag)
     n = dist.get("elements", DEFAULT_FRICTION_ELEMENTS) if isinstance(dist, dict) else DEFAULT_FRICTION_ELEMENTS if dist is True else dist
     if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 64:
         raise InputError(f"[effects].distributed_friction: expected true or {{elements = N}} with 1 ≤ N ≤ 64, got {dist!r}")
-    return MaxwellSlipFriction(n_elements=n, load_dependent=load, load_lag=lag)
+    return MaxwellSlipFriction(n_elements=n, load_dependent=load, load_lag=lag, load_growth=growth)
 
 
 def _temperature(value):

@@ -32,6 +32,10 @@ _LOAD_LAG = Parameter("friction_load_lag_time", "positive", "s",
                       vanishes_at_zero=True)
 
 
+#: how a growing load raises Maxwell-slip elements' levels (:class:`MaxwellSlipFriction`)
+LOAD_GROWTH = ("proportional", "common")
+
+
 class AbstractFriction(eqx.Module):
     """Maps a torque sequence to a friction torque sequence (N·m)."""
 
@@ -115,6 +119,11 @@ class MaxwellSlipFriction(AbstractFriction):
     ``T_f·e^(−s²/2)`` and mean ≈ ``T_f`` (the sliding friction level), spread ``s``. The
     friction torque is ``τ − mean_k p_k``. One element with s → 0 is ideal Coulomb friction.
 
+    With ``load_growth = "common"`` the load adds one friction to every element instead,
+    ``R_k = r_k + μ|τ|`` (same mean): the contacts' spread of break-away levels, in N·m, stays
+    as the level grows, so pre-sliding is gradual after a small reversal and the knee sharp
+    after a large one (the load's share sits on the loaded mesh, not on each contact's fit).
+
     ``initial_state`` z0 ∈ (−1, 1) places every element at ``p_k = τ_0 − z0·R_k`` at the first
     sample (0: at rest, no friction load).
     """
@@ -123,10 +132,14 @@ class MaxwellSlipFriction(AbstractFriction):
     initial_state: float = eqx.field(static=True, default=0.0)
     load_dependent: bool = eqx.field(static=True, default=False)
     load_lag: bool = eqx.field(static=True, default=False)
+    #: how the load raises the elements' levels: "proportional" (each by its share) or "common"
+    load_growth: str = eqx.field(static=True, default="proportional")
 
     def __check_init__(self):
         if self.n_elements < 1:
             raise ValueError(f"n_elements must be ≥ 1, got {self.n_elements}")
+        if self.load_growth not in LOAD_GROWTH:
+            raise ValueError(f"load_growth must be one of {LOAD_GROWTH}, got {self.load_growth!r}")
 
     def parameters(self):
         out = (Parameter("friction_torque", "positive", "N·m", "sliding friction level T_f (mean break-away)"),)
@@ -151,8 +164,11 @@ class MaxwellSlipFriction(AbstractFriction):
         # scales with its normal load), so the break-away spread — gradual pre-sliding — holds
         # at every load; the mean level is T_f + μ|τ|, as for Dahl friction
         load = self.level_load(params, tau, time_s, method)
-        scale = 1.0 + self._load_coefficient(params) * load / params["friction_torque"]
-        limit = self.breakaway_levels(params)[None, :] * scale[:, None]
+        if self.load_growth == "common":
+            limit = self.breakaway_levels(params)[None, :] + (self._load_coefficient(params) * load)[:, None]
+        else:
+            scale = 1.0 + self._load_coefficient(params) * load / params["friction_torque"]
+            limit = self.breakaway_levels(params)[None, :] * scale[:, None]
         z0 = self.initial_state if initial_state is None else initial_state
         p0 = tau[0] - z0 * limit[0]
         p = play_scan(tau[1:, None] - limit[1:], tau[1:, None] + limit[1:], p0, method)
