@@ -570,6 +570,9 @@ def _main(args) -> int:
         if args.refresh_references:
             refresh_references(doc["units"], doc.get("decimate", args.decimate))
         if args.refresh_data_metrics:
+            if not DATA.is_dir():
+                print(f"{DATA} is absent: the data-only metrics are read from the measured files")
+                return 1
             refresh_data_metrics(doc["units"], doc.get("decimate", args.decimate))
         if args.refresh_references or args.refresh_data_metrics:
             (args.output / "validation.json").write_text(json.dumps(doc, indent=1, default=float))
