@@ -525,12 +525,27 @@ def play_of(cls: AmplitudeClass) -> float:
     return float(np.interp(0.0, cls.torque_Nm, cls.width_rad))
 
 
+def _loop_centre_and_half_play(cls: AmplitudeClass, play_rad: float) -> tuple[float, float]:
+    """(θ_mid(0), play/2) in rad: the loop midpoint at zero torque the loading fits measure
+    the angle from, and the threshold past which a branch counts as loaded."""
+    grid = cls.torque_Nm
+    centre = 0.5 * float(np.interp(0.0, grid, cls.upper_rad) + np.interp(0.0, grid, cls.lower_rad))
+    return centre, 0.5 * max(float(play_rad), 0.0)
+
+
 def _side_fit(
-    tau: np.ndarray, theta: np.ndarray, half: float, top: float, where: str, amplitude: float, name: str
+    cls: AmplitudeClass, branch: np.ndarray, side: str, centre: float, half: float, top: float, name: str
 ) -> tuple[float, float, float]:
-    """(slope, start, end) of one loading branch mirrored to τ > 0: ``tau`` increasing, ``theta``
-    the angle from the loop midpoint at zero torque (rad), fitted from the first torque beyond
-    which the branch stays past ``half`` the play up to ``top`` × its peak (:func:`loading_fit`)."""
+    """(slope, start, end) of one loading branch of ``cls`` (:func:`loading_fit`): ``side``
+    "pos" for an increasing-torque branch read at τ > 0, "neg" for a decreasing-torque branch
+    read at τ < 0 and mirrored to τ > 0; fitted from the first torque beyond which the branch
+    stays past ``half`` the play from ``centre`` up to ``top`` × its peak."""
+    grid = cls.torque_Nm
+    if side == "pos":
+        tau, theta, where = grid, branch - centre, "positive"
+    else:
+        tau, theta, where = -grid[::-1], -(branch[::-1] - centre), "negative"
+    amplitude = cls.amplitude_Nm
     peak = float(tau[-1])
     end = top * peak
     part = (tau > 0) & (tau <= end)
@@ -578,13 +593,8 @@ def loading_fit(
     :class:`InputError` when a side has no such range starting below
     ``LOADING_FIT_MAX_START`` × its peak, or its slope is not positive.
     """
-    grid, upper, lower = cls.torque_Nm, cls.upper_rad, cls.lower_rad
-    centre = 0.5 * float(np.interp(0.0, grid, upper) + np.interp(0.0, grid, lower))
-    half = 0.5 * max(float(play_rad), 0.0)
-    out = {
-        "pos": _side_fit(grid, lower - centre, half, top, "positive", cls.amplitude_Nm, name),
-        "neg": _side_fit(-grid[::-1], -(upper[::-1] - centre), half, top, "negative", cls.amplitude_Nm, name),
-    }
+    centre, half = _loop_centre_and_half_play(cls, play_rad)
+    out = {side: _side_fit(cls, branch, side, centre, half, top, name) for side, branch in (("pos", cls.lower_rad), ("neg", cls.upper_rad))}
     return LoadingFit(
         compliance_pos=out["pos"][0],
         compliance_neg=out["neg"][0],
@@ -648,14 +658,9 @@ def loading_compliance_cycles(
     slope is linear in the angles over a fixed range; here each branch starts where it has
     crossed the play).
     """
-    grid = cls.torque_Nm
-    centre = 0.5 * float(np.interp(0.0, grid, cls.upper_rad) + np.interp(0.0, grid, cls.lower_rad))
-    half = 0.5 * max(float(play_rad), 0.0)
-    pos = [_side_fit(grid, lower - centre, half, top, "positive", cls.amplitude_Nm, name)[0] for lower in cls.lower_each_rad]
-    neg = [
-        _side_fit(-grid[::-1], -(upper[::-1] - centre), half, top, "negative", cls.amplitude_Nm, name)[0]
-        for upper in cls.upper_each_rad
-    ]
+    centre, half = _loop_centre_and_half_play(cls, play_rad)
+    pos = [_side_fit(cls, branch, "pos", centre, half, top, name)[0] for branch in cls.lower_each_rad]
+    neg = [_side_fit(cls, branch, "neg", centre, half, top, name)[0] for branch in cls.upper_each_rad]
     return np.asarray(pos), np.asarray(neg)
 
 
