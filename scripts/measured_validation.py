@@ -51,7 +51,7 @@ from torsionfit.fit import NoiseOptions, model_inputs
 from torsionfit.fit._problem import cycle_amplitude_shape
 from torsionfit.io import decimate, load_campaign
 from torsionfit.metrics import cycle_classes, loading_compliance_cycles, loading_fit, play_of
-from torsionfit.report import FitOptions, fit_campaign
+from torsionfit.report import FitOptions, fit_campaign, metrics_against_data
 from torsionfit.units import ANGLE_UNITS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -59,6 +59,8 @@ DATA = ROOT.parent / "shared" / "data" / "cycloidal-jv"
 EXAMPLES = ROOT / "examples" / "cycloidal-jv"
 sys.path.insert(0, str(ROOT / "benchmarks"))
 ARCSEC = ANGLE_UNITS["arcsec"]
+#: the model metrics the data read directly (fit.json's check against the data)
+CLASS_METRICS = ("play", "stiffness_loading", "compliance_loading_pos", "compliance_loading_neg")
 DEG = ANGLE_UNITS["deg"]
 EFFECTS = {"load_dependent_friction": {"lag": True}, "distributed_friction": True, "stiffness_nonlinearity": "power_law",
            "asymmetry": True}
@@ -133,6 +135,9 @@ def validate(unit: str, folder: Path, args) -> dict:
     fit = fit_campaign(train, fit_options(args), seed=args.seed)
     seconds = time.perf_counter() - t0
     problem = fit.problem
+    # the product's own check on the fitted file (fit.json): the class metrics read off the
+    # model's prediction of the training record against the data's reading of it
+    fit_metrics, fit_off = metrics_against_data(fit)
     rng = np.random.default_rng(args.seed)
     pick = rng.choice(len(fit.draws_u), size=min(args.draws, len(fit.draws_u)), replace=False)
     draws = fit.draws_u[pick]
@@ -180,6 +185,9 @@ def validate(unit: str, folder: Path, args) -> dict:
         "misfit_inflation": inflation,
         "diagnostics": fit.diagnostics,
         "physics_map": {k: float(np.asarray(v)) for k, v in fit.map_result.values.items() if np.ndim(v) == 0},
+        "fit_json_off_data": fit_off,
+        "fit_json_class_metrics": {k: {"mean": e["mean"], "hdi95": e["hdi95"], "unit": e["unit"], "data": e.get("data")}
+                                   for k, e in fit_metrics.items() if k in CLASS_METRICS},
     }
     # data-only and model play / loading compliance, same definitions
     t, tau = np.asarray(run.time_s), np.asarray(run.torque_Nm)
@@ -454,6 +462,25 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
                   f"the model's held-out RMSE at or below it on {int(np.sum(model <= rep))} of {len(rep)} loops "
                   f"(median ratio {np.median(model / rep):.2f}, worst {np.max(model / rep):.2f}); of the {len(narrow)} loops whose "
                   f"90 % interval covers less than 80 %, the model is below it or within 10 % above on {len(walk)}."]
+    flagged = [r for r in rows if "fit_json_off_data" in r]
+    if flagged:
+        count = {name: sum(name in r["fit_json_off_data"] for r in flagged) for name in CLASS_METRICS}
+        lines += ["", "Off the data (the fit's own check, as `torsionfit fit` writes it to fit.json): the class metrics read off the "
+                  "model's prediction of the fitted record, whose 95 % HDI misses the data's reading of the same record by more than "
+                  "two of its standard errors, per loop:", "",
+                  "| unit | off the data | play model / data (arcmin) | stiffness_loading model / data (Nm/arcmin) |", "| --- | --- | --- | --- |"]
+        for r in flagged:
+            m = r["fit_json_class_metrics"]
+
+            def pair(name, digits):
+                e = m.get(name)
+                if not e or not e.get("data"):
+                    return "n/a"
+                return f"{e['mean']:.{digits}f} ({e['hdi95'][0]:.{digits}f}–{e['hdi95'][1]:.{digits}f}) / {e['data']['value']:.{digits}f}"
+
+            lines.append(f"| {r['unit']} | {', '.join(r['fit_json_off_data']) or 'none'} | {pair('play', 1)} | {pair('stiffness_loading', 4)} |")
+        lines += ["", f"Flagged on {sum(bool(r['fit_json_off_data']) for r in flagged)} of {len(flagged)} loops: "
+                  + ", ".join(f"{name} on {n}" for name, n in count.items()) + "."]
     authors = authors_table()
     lines += ["", "Per configuration, positions averaged like the data's authors (their numbers from the data's README):", "",
               "| configuration | play authors (deg) | play data | play model (95 % HDI) | compliance authors (deg/N·m) | compliance data (± s.e.) | authors − data (in s.e.) | compliance model (95 % HDI) | authors' play in model HDI | authors' compliance in model HDI | data's compliance in model HDI |",

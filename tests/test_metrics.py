@@ -13,6 +13,7 @@ from torsionfit.io import Campaign, HysteresisRun, Instrument, Reducer, Transmis
 from torsionfit.metrics import (
     LoopBranches,
     campaign_metrics,
+    class_readings,
     cycle_classes,
     format_metrics_table,
     hysteresis_metrics,
@@ -20,6 +21,7 @@ from torsionfit.metrics import (
     loading_compliance_from_arrays,
     loading_fit,
     loop_branches,
+    play_cycles,
     play_from_arrays,
     reference_run_for,
     te_metrics,
@@ -693,6 +695,34 @@ def test_loading_compliances_branch_by_branch_give_the_cycle_to_cycle_scatter():
     fit = loading_fit(classes.largest, play_from_arrays(time, tau, theta))
     assert pos.mean() == pytest.approx(fit.compliance_pos, rel=0.005)
     assert neg.mean() == pytest.approx(fit.compliance_neg, rel=0.005)
+
+
+def test_play_cycle_by_cycle_cancels_a_walk_of_the_loop_and_readings_carry_its_scatter():
+    time, tau = bench_protocol()
+    theta = bench_angle(tau)
+    classes = cycle_classes(time, tau, theta)
+    # identical cycles: one play per cycle (5 play ramps each way), no scatter
+    assert play_cycles(classes.smallest) == pytest.approx(np.full(5, EXPECTED_PLAY), rel=1e-3)
+    r = class_readings(classes.smallest, classes.largest)
+    assert r["play"].value == pytest.approx(EXPECTED_PLAY, rel=1e-3) and r["play"].se == pytest.approx(0.0, abs=1e-9)
+    assert r["compliance_loading"].value == pytest.approx(0.5 * (1 / K_POS + 1 / K_NEG), rel=1e-3)
+    # the whole loop walks in angle over the record (0.2 play per 10 s): a cycle's two branches
+    # move alike, so the plays cycle by cycle stay equal while the branches' own scatter grows
+    walked = theta + 0.02 * EXPECTED_PLAY * time
+    small = cycle_classes(time, tau, walked).smallest
+    each = play_cycles(small)
+    assert np.ptp(each) < 0.1 * np.ptp(small.upper_each_rad[:, np.searchsorted(small.torque_Nm, 0.0)])
+    # a play that grows cycle by cycle: the standard error is the plays' std / √n
+    grow = 1.0 + 0.1 * np.minimum(time, 44.0) / 44.0  # over the play ramps (the first 44 s)
+    theta_g = grow * theta
+    small_g = cycle_classes(time, tau, theta_g).smallest
+    plays = play_cycles(small_g)
+    assert np.all(np.diff(plays) > 0)
+    classes_g = cycle_classes(time, tau, theta_g)
+    r_g = class_readings(classes_g.smallest, classes_g.largest)
+    assert r_g["play"].se == pytest.approx(np.std(plays, ddof=1) / np.sqrt(plays.size), rel=1e-9)
+    pos, neg = loading_compliance_cycles(cycle_classes(time, tau, theta_g).largest, r_g["play"].value)
+    assert r_g["compliance_loading_pos"].se == pytest.approx(np.std(pos, ddof=1) / np.sqrt(2), rel=1e-9, abs=1e-15)
 
 
 def test_a_run_of_one_amplitude_class_says_so():

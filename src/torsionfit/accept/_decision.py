@@ -57,20 +57,22 @@ class Decision:
 
 
 def decide_unit(conform: np.ndarray, names, p_accept: float, converged: bool = True,
-                not_converged_reason: str = "") -> Decision:
+                not_converged_reason: str = "", withheld_reason: str = "") -> Decision:
     """Decide from ``conform`` (draws × requirements, bool: does the draw meet the requirement).
 
     A posterior that did not converge gives ``indeterminate`` for the unit and every requirement,
-    with the reason; its p_c are reported but never used for a decision."""
+    with the reason; its p_c are reported but never used for a decision. So does a
+    ``withheld_reason`` (a requirement on a metric the model is known not to draw)."""
     conform = np.asarray(conform, bool)
     if conform.ndim != 2 or conform.shape[1] != len(names) or conform.shape[0] == 0:
         raise ValueError(f"conform must be (draws > 0, {len(names)}), got {conform.shape}")
     p_each = tuple(float(p) for p in conform.mean(axis=0))
     p_joint = float(np.all(conform, axis=1).mean())
     n = conform.shape[0]
-    if not converged:
+    if not converged or withheld_reason:
         why = not_converged_reason or "the sampler's diagnostics say converged: false"
-        reason = f"no decision from a posterior that has not converged ({why}); joint p_c would be {p_joint:.4g}"
+        reason = (f"no decision: {withheld_reason}" if converged else
+                  f"no decision from a posterior that has not converged ({why})") + f"; joint p_c would be {p_joint:.4g}"
         return Decision(INDETERMINATE, p_joint, p_accept, p_each, (INDETERMINATE,) * len(names),
                         None, None, reason, n)
     each = tuple(decide(p, p_accept) for p in p_each)

@@ -6,7 +6,8 @@
 - :func:`play_from_arrays` / :func:`loading_compliance_from_arrays` — play (loop width at zero
   torque of the smallest cycles) and loading-branch compliances of the largest cycles, from
   plain arrays (measured or simulated); :func:`cycle_classes` groups a run's cycles by amplitude,
-  :func:`loading_compliance_cycles` gives the loading compliances branch by branch;
+  :func:`loading_compliance_cycles` gives the loading compliances branch by branch and
+  :func:`play_cycles` the play cycle by cycle, :func:`class_readings` both with standard errors;
 - :func:`hysteresis_run_metrics` — all of these for one run, with a note for each metric that
   cannot be computed;
 - :func:`te_metrics` — K_d (180°), K_t (revolution mean) and TE levels of one TE run;
@@ -24,6 +25,8 @@ from ._hysteresis import (
     CycleClasses as CycleClasses,
     LoadingFit as LoadingFit,
     LoopBranches as LoopBranches,
+    Reading as Reading,
+    class_readings as class_readings,
     cycle_classes as cycle_classes,
     hysteresis_metrics as hysteresis_metrics,
     hysteresis_run_metrics as hysteresis_run_metrics,
@@ -32,6 +35,7 @@ from ._hysteresis import (
     loading_fit as loading_fit,
     loop_branches as loop_branches,
     play_from_arrays as play_from_arrays,
+    play_cycles as play_cycles,
     play_of as play_of,
 )
 from ._te import te_metrics as te_metrics, te_profile as te_profile

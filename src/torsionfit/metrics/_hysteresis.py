@@ -141,6 +141,57 @@ def _branch_curves(smooth: np.ndarray, theta: np.ndarray, segments, ids, grid: n
     return np.array([_binned_curve(smooth[s : e + 1], theta[s : e + 1], grid, spacing) for s, e, _ in (segments[k] for k in ids)])
 
 
+@dataclass(frozen=True)
+class BranchWeights:
+    """The mean of some branches on a torque grid as a fixed linear map of the angle record:
+    ``θ̄_b`` = mean of ``angle[samples]`` over the samples with ``bins == b`` (``counts[b]`` of
+    them); branch k at grid point g is ``(1 − w[k, g])·θ̄[lo[k, g]] + w[k, g]·θ̄[lo[k, g] + 1]``;
+    the mean curve is the mean over the branches. What :func:`_branch_curves` computes, with
+    everything that depends on the torque alone done once (the same torque, any angle: a
+    model's prediction of the record, draw by draw)."""
+
+    samples: np.ndarray
+    bins: np.ndarray
+    counts: np.ndarray
+    lo: np.ndarray
+    w: np.ndarray
+
+    def curves(self, angle_rad: np.ndarray) -> np.ndarray:
+        """Each branch on the grid (rows), NumPy."""
+        sums = np.bincount(self.bins, weights=np.asarray(angle_rad)[self.samples], minlength=self.counts.size)
+        mean = sums / self.counts
+        return (1.0 - self.w) * mean[self.lo] + self.w * mean[self.lo + 1]
+
+
+def branch_weights(smooth: np.ndarray, segments, ids, grid: np.ndarray) -> BranchWeights:
+    """:class:`BranchWeights` of the segments ``ids`` of the smoothed torque ``smooth`` on
+    ``grid`` (bins and interpolation as :func:`_binned_curve`: bin means of torque and angle,
+    interpolated linearly between them, the end slopes continued past the ends)."""
+    spacing = float(grid[1] - grid[0])
+    samples, bins, counts, lo, w = [], [], [], [], []
+    offset = 0
+    for start, stop, _ in (segments[k] for k in ids):
+        tau = smooth[start : stop + 1]
+        index = np.floor((tau - (grid[0] - 0.5 * spacing)) / spacing).astype(np.int64)
+        index -= index.min()
+        count = np.bincount(index)
+        used = np.flatnonzero(count > 0)
+        if used.size < 2:
+            raise InputError(f"a branch of {tau.size} samples spans fewer than two torque bins; expected a ramp")
+        compact = np.full(count.size, -1)
+        compact[used] = np.arange(used.size)
+        tau_mean = np.bincount(index, weights=tau)[used] / count[used]
+        j = np.clip(np.searchsorted(tau_mean, grid) - 1, 0, used.size - 2)
+        samples.append(np.arange(start, stop + 1))
+        bins.append(offset + compact[index])
+        counts.append(count[used])
+        lo.append(offset + j)
+        w.append((grid - tau_mean[j]) / (tau_mean[j + 1] - tau_mean[j]))
+        offset += used.size
+    return BranchWeights(np.concatenate(samples), np.concatenate(bins), np.concatenate(counts).astype(float),
+                         np.array(lo), np.array(w))
+
+
 def _check_arrays(name: str, time_s, torque_Nm, angle_rad) -> tuple[np.ndarray, np.ndarray]:
     tau = np.asarray(torque_Nm, dtype=float)
     theta = np.asarray(angle_rad, dtype=float)
@@ -465,6 +516,25 @@ def cycle_classes(
     return CycleClasses(smooth, tuple(segments), tuple(classes), tuple(dropped))
 
 
+def class_loading_rate(classes: CycleClasses, cls: AmplitudeClass, time_s) -> float | None:
+    """Loading rate (N·m/s) of the ramps of ``cls``, a class of ``classes`` read from a record
+    with sample times ``time_s`` (s): per ramp, the amplitude over the time its smoothed torque
+    takes from −A/2 to +A/2 (clear of the reversals and of a torque plateau at the peaks); the
+    median over the ramps. None when no ramp has a positive duration there."""
+    t = np.asarray(time_s, float)
+    smooth, half = classes.smoothed_torque_Nm, 0.5 * cls.amplitude_Nm
+    rates = []
+    for k in cls.segment_ids:
+        start, stop, direction = classes.segments[k]
+        rising = direction * smooth[start : stop + 1]
+        if rising.max() < half or rising.min() > -half:
+            continue
+        i0, i1 = start + int(np.argmax(rising >= -half)), start + int(np.argmax(rising >= half))
+        if t[i1] > t[i0]:
+            rates.append(2.0 * half / (t[i1] - t[i0]))
+    return float(np.median(rates)) if rates else None
+
+
 def grouped_cycles(runs) -> list[CycleClasses]:
     """:func:`cycle_classes` of every hysteresis run whose cycles can be grouped (the others,
     e.g. a run with no full cycle, are left out)."""
@@ -662,6 +732,49 @@ def loading_compliance_cycles(
     pos = [_side_fit(cls, branch, "pos", centre, half, top, name)[0] for branch in cls.lower_each_rad]
     neg = [_side_fit(cls, branch, "neg", centre, half, top, name)[0] for branch in cls.upper_each_rad]
     return np.asarray(pos), np.asarray(neg)
+
+
+def play_cycles(cls: AmplitudeClass) -> np.ndarray:
+    """Loop width at zero torque cycle by cycle (rad): the k-th decreasing-torque branch of
+    ``cls`` minus its k-th increasing-torque branch, for k up to the smaller count. A cycle's two
+    branches are neighbours in time, so a walk of the whole loop in angle from ramp to ramp moves
+    both alike and cancels; their spread is the bench's cycle-to-cycle repeatability of
+    :func:`play_of` (which averages the branches first)."""
+    n = min(cls.n_upper, cls.n_lower)
+    at_zero = lambda rows: np.array([np.interp(0.0, cls.torque_Nm, row) for row in rows[:n]])  # noqa: E731
+    return at_zero(cls.upper_each_rad) - at_zero(cls.lower_each_rad)
+
+
+@dataclass(frozen=True)
+class Reading:
+    """A value read off the data (SI) and its standard error from the cycle-to-cycle scatter
+    (None when fewer than two cycles give it)."""
+
+    value: float
+    se: float | None
+
+
+def _se(x: np.ndarray) -> float | None:
+    return float(np.std(x, ddof=1) / np.sqrt(len(x))) if len(x) >= 2 else None
+
+
+def class_readings(small: AmplitudeClass, large: AmplitudeClass, *, name: str = "run") -> dict[str, Reading]:
+    """``play`` (rad) of the cycles ``small`` and the loading compliances of the cycles
+    ``large`` beyond that play (rad/N·m: ``compliance_loading_pos`` / ``_neg`` and their mean
+    ``compliance_loading``), each with its standard error from the scatter of its cycles
+    (:func:`play_cycles`, :func:`loading_compliance_cycles`: std/√n; the mean's from both
+    sides'). Raises :class:`InputError` as :func:`loading_fit` does."""
+    play = play_of(small)
+    fit = loading_fit(large, play, name=name)
+    pos, neg = loading_compliance_cycles(large, play, name=name)
+    se_pos, se_neg = _se(pos), _se(neg)
+    se_mean = None if se_pos is None or se_neg is None else 0.5 * float(np.hypot(se_pos, se_neg))
+    return {
+        "play": Reading(play, _se(play_cycles(small))),
+        "compliance_loading_pos": Reading(fit.compliance_pos, se_pos),
+        "compliance_loading_neg": Reading(fit.compliance_neg, se_neg),
+        "compliance_loading": Reading(fit.compliance, se_mean),
+    }
 
 
 # ----------------------------------------------------------------------------- metrics

@@ -8,6 +8,7 @@ from ._pipeline import (
     finish_fit as finish_fit,
     fit_campaign as fit_campaign,
     fit_json as fit_json,
+    metrics_against_data as metrics_against_data,
     prepare_fit as prepare_fit,
     sampler_kwargs as sampler_kwargs,
     summarise as summarise,

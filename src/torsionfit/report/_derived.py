@@ -2,14 +2,13 @@
 run through the paper's five-step protocol and the TE conditions of the campaign, noise-free,
 and the metrics are read off exactly. Vectorised over draws.
 
-The loop is the fitted model's, at the slowest loading rate of the campaign (or T_r/100 per
-second without hysteresis runs), started at rest (friction state 0, no offset, no drift).
+The loop is the fitted model's, at the slowest loading rate the campaign's hysteresis runs
+declare (else the rate read off the data's largest cycles; T_r/100 per second without
+hysteresis cycles), started at rest (friction state 0, no offset, no drift).
 
 ``play`` and ``stiffness_loading`` are read, with the data-only definitions
-(``metrics.play_from_arrays``, ``metrics.loading_compliance_from_arrays``), off a second
-noise-free record shaped like the measured one: small cycles at the amplitude of the data's
-smallest cycles (its play ramps) followed by large cycles at the amplitude of its largest
-(its stiffness ramps), started at rest.
+(``metrics.play_from_arrays``, ``metrics.loading_compliance_from_arrays``), off the model's
+noise-free prediction of the data's own record (``report/_record.py``), started at rest.
 """
 
 import dataclasses
@@ -25,9 +24,10 @@ from .. import model as m
 from .._chunks import CHUNK, map_chunks
 from ..io import Campaign
 from ..metrics._campaign import reference_run_for
-from ..metrics._hysteresis import LOADING_FIT_TOP, grouped_cycles
+from ..metrics._hysteresis import class_loading_rate
 from ..metrics._te import TE_WINDOW_DEG, in_te_window, te_reading
 from ..units import ANGLE_UNITS, SPEED_UNITS, STIFFNESS_UNITS
+from ._record import RecordReader, record_classes, record_reader
 
 ARCMIN = ANGLE_UNITS["arcmin"]
 NM_PER_ARCMIN = STIFFNESS_UNITS["Nm/arcmin"]
@@ -80,64 +80,6 @@ def _protocol(rated, rate, samples_per_step: int, lost_motion_fraction: float) -
     return _Protocol(jnp.asarray(t), jnp.asarray(tau), 2 * k, 3 * k, 4 * k, 5 * k)
 
 
-#: samples per leg (peak to peak) of the play and stiffness cycles of the bench record (the
-#: levels read are samples; the loading slopes are least squares over them); cycles
-#: of each: the metrics read the last one, the ones before settle the friction state
-BENCH_SAMPLES_PER_LEG = 100
-BENCH_SMALL_CYCLES = 3
-BENCH_LARGE_CYCLES = 2
-
-
-class _BenchRecord(eqx.Module):
-    """Play cycles then stiffness cycles, as a bench runs them: 0 → +a → −a … then 0 → +A →
-    −A …, each leg through τ = 0 exactly. ``small``/``large``: (down start, up start, up end)
-    sample indices of the last cycle of each (down: +peak → −peak, up: −peak → +peak)."""
-
-    time_s: jnp.ndarray
-    torque_Nm: jnp.ndarray
-    small: tuple = eqx.field(static=True)
-    large: tuple = eqx.field(static=True)
-
-
-def _bench_record(small_Nm: float, large_Nm: float, rate: float) -> _BenchRecord:
-    n = BENCH_SAMPLES_PER_LEG  # even: a peak-to-peak leg has τ = 0 as its middle sample
-    knots = [0.0]
-    for amp, cycles in ((small_Nm, BENCH_SMALL_CYCLES), (large_Nm, BENCH_LARGE_CYCLES)):
-        if knots[-1] != 0.0:
-            knots.append(0.0)
-        knots += [amp, -amp] * cycles + [amp]
-    legs = [np.linspace(a, b, n + 1 if abs(a) == abs(b) and a else n // 2 + 1) for a, b in zip(knots[:-1], knots[1:])]
-    tau = np.concatenate([legs[0]] + [leg[1:] for leg in legs[1:]])
-    t = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(tau)) / rate)])
-    ends = np.cumsum([len(leg) - 1 for leg in legs])  # index of each knot after the first
-    small_end = 1 + 2 * BENCH_SMALL_CYCLES  # knots: 0, a, −a, …, a
-    last = len(knots) - 1
-    small = (int(ends[small_end - 3]), int(ends[small_end - 2]), int(ends[small_end - 1]))
-    large = (int(ends[last - 3]), int(ends[last - 2]), int(ends[last - 1]))
-    return _BenchRecord(jnp.asarray(t), jnp.asarray(tau), small, large)
-
-
-def _loop_at_zero(theta, tau, idx):
-    """(down, up) angle at τ = 0 of the cycle with (down start, up start, up end) ``idx``."""
-    d0, u0, u1 = idx
-    return theta[(d0 + u0) // 2], theta[(u0 + u1) // 2]
-
-
-def _loading_compliance(theta, tau, idx, centre, play, peak):
-    """Least-squares dθ/dτ of the loading parts of one cycle (up branch at τ > 0, down branch
-    at τ < 0) beyond half the play from the loop centre, up to 90 % of the peak: (pos, neg)."""
-    d0, u0, u1 = idx
-
-    def slope(t, y):
-        w = ((jnp.abs(y - centre) > 0.5 * play) & (jnp.abs(t) <= LOADING_FIT_TOP * peak) & (jnp.abs(t) > 0)).astype(t.dtype)
-        sw = jnp.maximum(jnp.sum(w), 1.0)
-        tm, ym = jnp.sum(w * t) / sw, jnp.sum(w * y) / sw
-        return jnp.sum(w * (t - tm) * (y - ym)) / jnp.maximum(jnp.sum(w * (t - tm) ** 2), 1e-300)
-
-    mid_up, mid_dn = (u0 + u1) // 2, (d0 + u0) // 2
-    return slope(tau[mid_up:u1 + 1], theta[mid_up:u1 + 1]), slope(tau[mid_dn:u0 + 1], theta[mid_dn:u0 + 1])
-
-
 #: linear parameters the metrics read: the reducer's kinematic error is a property of the unit;
 #: the others (per-run offsets, drift) belong to one measured run and are zero in the metrics' runs
 METRIC_LINEAR = ("kin_cos", "kin_sin")
@@ -183,7 +125,7 @@ class DerivedMetrics(eqx.Module):
     te_model: m.CampaignModel | None
     protocol: _Protocol
     te_inputs: list
-    bench: _BenchRecord | None
+    record: RecordReader | None
     specs: tuple = eqx.field(static=True)
     # arrays, not static fields: a static value is part of the compile key, and a batch of units
     # with other rated torques would compile the metrics anew for each
@@ -227,8 +169,10 @@ class DerivedMetrics(eqx.Module):
             values["gap"] / ARCMIN,
             values["friction_torque"],
         ] + [q / ARCMIN for q in parts]
-        if self.bench is not None:
-            out += self._bench_metrics(params)
+        if self.record is not None:
+            play, c_pos, c_neg = self.record.read(self.hyst_model, params)
+            deg = ANGLE_UNITS["deg"]
+            out += [play / ARCMIN, 2.0 / (c_pos + c_neg) / NM_PER_ARCMIN, c_pos / deg, c_neg / deg]
         if self.te_model is not None:
             in_window, weight = _TE_GRID[1], _TE_GRID[2]
             for loaded, reference in self.te_inputs:
@@ -238,19 +182,6 @@ class DerivedMetrics(eqx.Module):
                                                          has_reference=reference is not None)
                 out += [kd / NM_PER_ARCMIN, kt / NM_PER_ARCMIN, kinematic_180 / ARCMIN]
         return jnp.stack([jnp.asarray(v, float) for v in out])
-
-    def _bench_metrics(self, params) -> list:
-        """``play`` (arcmin), ``stiffness_loading`` (N·m/arcmin) and the two loading
-        compliances (deg/N·m) off the bench record, with the data-only definitions."""
-        b = self.bench
-        theta = self.hyst_model.predict(params, [m.hysteresis_input(b.time_s, b.torque_Nm)])[0]
-        down, up = _loop_at_zero(theta, b.torque_Nm, b.small)
-        play = down - up
-        centre = 0.5 * sum(_loop_at_zero(theta, b.torque_Nm, b.large))
-        peak = jnp.max(jnp.abs(b.torque_Nm))
-        c_pos, c_neg = _loading_compliance(theta, b.torque_Nm, b.large, centre, play, peak)
-        deg = ANGLE_UNITS["deg"]
-        return [play / ARCMIN, 2.0 / (c_pos + c_neg) / NM_PER_ARCMIN, c_pos / deg, c_neg / deg]
 
     def reads_linear(self) -> bool:
         """Whether the metrics read linear parameters (the kinematic harmonics of TE runs): only
@@ -272,7 +203,7 @@ class DerivedMetrics(eqx.Module):
     def over_draws(self, values_batch: dict) -> np.ndarray:
         """(draws, metrics) for a dict of stacked parameter draws."""
         kernel = self._kernel()
-        chunk = _draws_per_call(self.protocol.torque_Nm.shape[0])
+        chunk = _draws_per_call(self.protocol.torque_Nm.shape[0] + (self.record.n_samples if self.record is not None else 0))
         return map_chunks(lambda v: _metrics_over_draws(kernel, v), values_batch, chunk)
 
     @in_float64
@@ -321,8 +252,11 @@ def _kd_over_draws(derived: DerivedMetrics, values_batch: dict, torque_Nm, speed
 def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_pct: float = 3.0) -> DerivedMetrics:
     """Metric definitions and evaluation machinery for ``campaign`` fitted with ``model``."""
     rated = campaign.reducer.rated_torque_Nm
+    classes = record_classes(campaign)
     rates = [r.loading_rate_Nm_per_s for r in campaign.hysteresis_runs if r.loading_rate_Nm_per_s]
-    rate = min(rates) if rates else rated / 100.0
+    # a rate the manifest does not declare is read off the data's largest cycles
+    data_rate = None if classes is None else class_loading_rate(classes.large_classes, classes.large, classes.large_run.time_s)
+    rate = min(rates) if rates else data_rate or rated / 100.0
     hyst_model = dataclasses.replace(model, run_kinds=("hysteresis",))
     specs = [
         MetricSpec("stiffness_rated", "Nm/arcmin", f"secant T_r/(θ(T_r) − θ_mid(0)) of the model's five-step loop at {rate:g} N·m/s, midpoint reference"),
@@ -339,16 +273,18 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
     ]
     if model.creep is not None:
         specs.append(MetricSpec("twist_creep_at_rated", "arcmin", "creep part of the angle at T_r (end of step 5)"))
-    bench = None
-    amplitudes = _data_amplitudes(campaign)
-    if amplitudes is not None:
-        small, large = amplitudes
-        bench = _bench_record(small, large, rate)
-        record = f"the model's record of {BENCH_SMALL_CYCLES} cycles at ±{small:.3g} N·m then {BENCH_LARGE_CYCLES} at ±{large:.3g} N·m (the data's smallest and largest cycles)"
+    record = None
+    if classes is not None:
+        record = record_reader(classes)
+        runs = (f"run {classes.small_run.name!r}" if classes.large_run is classes.small_run
+                else f"runs {classes.small_run.name!r} and {classes.large_run.name!r}")
+        where = (f"the model's noise-free prediction of the data's own record ({runs}, started at rest), read as the data "
+                 f"are: the ±{classes.small.amplitude_Nm:.3g} N·m cycles for the play, the ±{classes.large.amplitude_Nm:.3g} N·m "
+                 f"cycles for the loading slope")
         specs += [
-            MetricSpec("play", "arcmin", f"loop width at zero torque of the smallest cycles: {record}"),
+            MetricSpec("play", "arcmin", f"loop width at zero torque of the smallest cycles: {where}"),
             MetricSpec("stiffness_loading", "Nm/arcmin", "1 / mean of the + and − loading-branch compliances of the largest cycles, beyond half the play from the loop centre up to 90 % of the peak (the data authors' definition), "
-                       + record),
+                       + where),
             MetricSpec("compliance_loading_pos", "deg/Nm", "loading compliance of the + side (increasing torque, τ > 0), as stiffness_loading"),
             MetricSpec("compliance_loading_neg", "deg/Nm", "loading compliance of the − side (decreasing torque, τ < 0), as stiffness_loading"),
         ]
@@ -377,14 +313,5 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
                                     + ("reference" if reference is not None else "run's own TE") + "), as the data-only te_kinematic_180", cond))
     steps = SAMPLES_PER_STEP if model.creep is None else SAMPLES_PER_STEP_CREEP
     protocol = _protocol(rated, rate, steps, lost_motion_pct / 100.0)
-    return DerivedMetrics(hyst_model, te_model, protocol, te_inputs, bench, tuple(specs), jnp.asarray(float(rated)),
+    return DerivedMetrics(hyst_model, te_model, protocol, te_inputs, record, tuple(specs), jnp.asarray(float(rated)),
                           jnp.asarray(lost_motion_pct / 100.0), ref_directions)
-
-
-def _data_amplitudes(campaign: Campaign) -> tuple[float, float] | None:
-    """(smallest, largest) cycle amplitude (N·m) over the campaign's hysteresis runs, as the
-    data-only metrics group them; None without a run whose cycles can be grouped."""
-    groups = grouped_cycles(campaign.hysteresis_runs)
-    if not groups:
-        return None
-    return min(g.smallest.amplitude_Nm for g in groups), max(g.largest.amplitude_Nm for g in groups)

@@ -27,6 +27,7 @@ from ..fit._misfit import MISFIT_RHO, misfit_correlated_runs, widen_for_misfit
 from ..io import Campaign, decimate
 from ..model import SteppedBacklash, model_with_effects
 from ..units import ANGLE_UNITS
+from ._against_data import against_data, data_readings, off_data_note
 from ._derived import derived_metrics_for
 from ._follows import left_by_posterior_reason, not_followed_reason, runs_left_by_posterior, runs_not_followed
 
@@ -532,15 +533,27 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
                        metric_values=metric_values, seed=seed)
 
 
-def fit_json(fit: CampaignFit, command: str | None = None) -> dict:
-    """The ``fit.json`` document (DESIGN §5.2); ``command``: the command line that made it."""
+def metrics_against_data(fit: CampaignFit) -> tuple[dict, list[str]]:
+    """fit.json's ``metrics`` (name → mean, sd, 95 % HDI, unit, description; with ``"data"``
+    where the data read the metric directly, ``report/_against_data.py``) and the names whose
+    HDI misses the data's own reading."""
     metrics = {}
     for spec, col in zip(fit.metric_specs, fit.metric_draws.T):
         entry = {**summarise(col), "unit": spec.unit, "description": spec.description}
         if spec.condition:
             entry["condition"] = spec.condition
         metrics[spec.name] = entry
+    return metrics, against_data(metrics, data_readings(fit.campaign))
+
+
+def fit_json(fit: CampaignFit, command: str | None = None) -> dict:
+    """The ``fit.json`` document (DESIGN §5.2); ``command``: the command line that made it."""
+    metrics, off = metrics_against_data(fit)
     components = {k: metrics[k] for k in metrics if k.startswith("twist_")}
+    diagnostics = dict(fit.diagnostics)
+    diagnostics["metrics_off_data"] = off
+    if off:
+        diagnostics["metrics_off_data_note"] = off_data_note(metrics, off)
     problem = fit.problem
     params = {}
     for name, col in zip(problem.names(fit.run_names), fit.draws_u.T):
@@ -565,7 +578,7 @@ def fit_json(fit: CampaignFit, command: str | None = None) -> dict:
         "metrics": metrics,
         "components": components,
         "parameters": physics,
-        "diagnostics": fit.diagnostics,
+        "diagnostics": diagnostics,
         "rmse": {name: {"value": v, "unit": "arcsec"} for name, v in fit.rmse_arcsec.items()},
         **_runs_json(fit.campaign, problem.model.temperature is not None),
         "provenance": provenance(fit.seed, command),
@@ -639,6 +652,8 @@ def summary_table(doc: dict) -> str:
         lines.append(f"noise: {d['noise_note']}")
     if d.get("laplace_note"):
         lines.append(f"laplace: {d['laplace_note']}")
+    if d.get("metrics_off_data_note"):
+        lines.append(f"off the data: {d['metrics_off_data_note']}")
     lines.append("RMSE: " + ", ".join(f"{k} {v['value']:.3g}″" for k, v in doc["rmse"].items()))
     return "\n".join(lines)
 

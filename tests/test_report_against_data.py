@@ -1,0 +1,108 @@
+"""The model's metrics against the data's own reading of them (report/_against_data.py), on
+SYNTHETIC loops built here: a play operator (Coulomb friction) on the torque, a linear spring
+and a tanh gap, five ±4 N·m play cycles then three ±40 N·m stiffness cycles per run."""
+
+import math
+
+import numpy as np
+import pytest
+
+from torsionfit.accept._decision import INDETERMINATE, decide_unit
+from torsionfit.io import Campaign, HysteresisRun, Instrument, Reducer
+from torsionfit.report._against_data import TOLERANCE_SE, against_data, data_readings, off_data_note
+
+DEG = math.pi / 180.0
+ARCMIN = DEG / 60.0
+T_F = 0.6  # N·m, friction of the play operator
+GAP, EPS_GAP = 0.5 * DEG, 0.05  # rad, N·m
+
+
+def _record(compliance_deg_per_Nm: float, fs: float = 50.0, rate: float = 4.0):
+    knots = [0.0, 4.0] + [-4.0, 4.0] * 5 + [0.0, 40.0, -40.0, 40.0, -40.0, 40.0, -40.0, 0.0]
+    tau = np.concatenate([np.linspace(a, b, max(2, int(abs(b - a) / rate * fs)), endpoint=False)
+                          for a, b in zip(knots[:-1], knots[1:])] + [np.zeros(1)])
+    mesh, state = np.empty_like(tau), 0.0
+    for i, t in enumerate(tau):
+        state = min(max(state, t - T_F), t + T_F)
+        mesh[i] = state
+    theta = compliance_deg_per_Nm * DEG * mesh + 0.5 * GAP * np.tanh(mesh / EPS_GAP)
+    return np.arange(tau.size) / fs, tau, theta
+
+
+def _campaign(*compliances) -> Campaign:
+    runs = []
+    for i, c in enumerate(compliances):
+        t, tau, theta = _record(c)
+        runs.append(HysteresisRun(name=f"run-{i}", time_s=t, torque_Nm=tau, angle_rad=theta))
+    return Campaign(Reducer("u"), Instrument(), tuple(runs))
+
+
+def test_data_readings_are_the_data_only_metrics_in_the_model_metrics_units():
+    readings = data_readings(_campaign(0.09))
+    play = readings["play"]
+    expected = (2 * T_F * 0.09 * DEG + GAP * math.tanh(T_F / EPS_GAP)) / ARCMIN
+    assert play["unit"] == "arcmin" and play["value"] == pytest.approx(expected, rel=2e-3)
+    assert play["se"] == pytest.approx(0.0, abs=1e-6)  # identical cycles
+    k = readings["stiffness_loading"]
+    assert k["unit"] == "Nm/arcmin" and k["value"] == pytest.approx(1.0 / (0.09 * 60.0), rel=2e-3)
+    assert readings["compliance_loading_pos"]["value"] == pytest.approx(0.09, rel=2e-3)
+    assert readings["compliance_loading_neg"]["run"] == "run-0"
+    # two runs: the play where the smallest cycles are, the slope where the largest are
+    two = data_readings(_campaign(0.08, 0.10))
+    assert two["compliance_loading_pos"]["value"] == pytest.approx(0.08, rel=2e-3)
+    # no hysteresis cycles to read: nothing
+    t = np.linspace(0.0, 10.0, 200)
+    flat = Campaign(Reducer("u"), Instrument(), (HysteresisRun(name="ramp", time_s=t, torque_Nm=t, angle_rad=1e-4 * t),))
+    assert data_readings(flat) == {}
+
+
+def _metrics(mean, lo, hi, unit="Nm/arcmin"):
+    return {"stiffness_loading": {"mean": mean, "sd": 1.0, "hdi95": [lo, hi], "unit": unit, "description": ""}}
+
+
+def test_a_model_interval_that_misses_the_datas_reading_is_flagged_with_one_line():
+    reading = {"stiffness_loading": {"value": 10.0, "se": 0.2, "unit": "Nm/arcmin", "run": "r"}}
+    inside = _metrics(10.5, 10.3, 10.7)  # misses by 0.3 < 2 s.e.: the reading may scatter so far
+    assert against_data(inside, reading) == [] and inside["stiffness_loading"]["data"]["within"] is True
+    off = _metrics(11.2, 10.5, 11.8)  # misses by 0.5 > 2 s.e.
+    assert against_data(off, reading) == ["stiffness_loading"]
+    assert off["stiffness_loading"]["data"] == {**reading["stiffness_loading"], "within": False}
+    note = off_data_note(off, ["stiffness_loading"])
+    assert "\n" not in note and "stiffness_loading 11.2" in note and "10.5–11.8" in note and "10 ± 0.2 Nm/arcmin" in note
+    assert 0.5 > TOLERANCE_SE * 0.2
+    # one cycle: no standard error, so no judgement (within None), never a flag
+    single = {"stiffness_loading": {**reading["stiffness_loading"], "se": None}}
+    far = _metrics(20.0, 19.0, 21.0)
+    assert against_data(far, single) == [] and far["stiffness_loading"]["data"]["within"] is None
+    # a metric the data read in another unit than the model's entry: not compared
+    other = _metrics(20.0, 19.0, 21.0, unit="deg/Nm")
+    assert against_data(other, reading) == [] and "data" not in other["stiffness_loading"]
+
+
+def test_a_withheld_decision_is_indeterminate_with_its_reason():
+    conform = np.ones((100, 2), bool)  # every draw meets both requirements
+    d = decide_unit(conform, ["k_loading", "lost_motion"], 0.95, withheld_reason="the model does not draw stiffness_loading")
+    assert d.decision == INDETERMINATE and set(d.requirement_decisions) == {INDETERMINATE}
+    assert d.reason.startswith("no decision: the model does not draw stiffness_loading; joint p_c would be 1")
+    assert decide_unit(conform, ["k_loading", "lost_motion"], 0.95).decision != INDETERMINATE
+
+
+def test_the_record_reader_reads_the_datas_angles_as_the_data_only_metrics_do():
+    """The model's reading (report/_record.py, JAX, vectorised over draws) applied to the
+    data's own angles gives the data-only numbers: same ramps, grids, bins, fit ranges."""
+    from torsionfit.metrics import cycle_classes, loading_fit, play_of
+    from torsionfit.report._record import record_classes, record_reader
+
+    campaign = _campaign(0.09)
+    run = campaign.runs[0]
+    theta = run.angle_rad + 2e-5 * np.sin(run.time_s)  # a slow wander: branches differ cycle to cycle
+    classes = cycle_classes(run.time_s, run.torque_Nm, theta)
+    play = play_of(classes.smallest)
+    fit = loading_fit(classes.largest, play)
+    reader = record_reader(record_classes(Campaign(Reducer("u"), Instrument(), (
+        HysteresisRun(name="r", time_s=run.time_s, torque_Nm=run.torque_Nm, angle_rad=theta),))))
+    got = [float(v) for v in reader.read_angles(theta, theta)]
+    assert got == pytest.approx([play, fit.compliance_pos, fit.compliance_neg], rel=1e-9)
+    # a loop whose loading branch never gets past half the play: NaN (a draw left out), not a number
+    flat = np.where(np.abs(run.torque_Nm) > 4.5, 0.0, theta)
+    assert np.isnan(float(reader.read_angles(theta, flat)[1]))
