@@ -3,6 +3,7 @@ SYNTHETIC loops built here: a play operator (Coulomb friction) on the torque, a 
 and a tanh gap, five ±4 N·m play cycles then three ±40 N·m stiffness cycles per run."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -106,3 +107,32 @@ def test_the_record_reader_reads_the_datas_angles_as_the_data_only_metrics_do():
     # a loop whose loading branch never gets past half the play: NaN (a draw left out), not a number
     flat = np.where(np.abs(run.torque_Nm) > 4.5, 0.0, theta)
     assert np.isnan(float(reader.read_angles(theta, flat)[1]))
+
+
+MEASURED = Path(__file__).resolve().parents[1] / "examples" / "cycloidal-jv" / "split-pccf-preload2-pos1.toml"
+SHARED = Path(__file__).resolve().parents[2] / "shared" / "data" / "cycloidal-jv"
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason=f"measured data absent: {SHARED}")
+def test_on_a_measured_loop_the_reader_and_the_readings_are_the_data_only_metrics():
+    """REAL measured loop (JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0, read from
+    ../shared/data): the reader applied to the file's angles gives the data-only play and
+    loading compliances, and each reading has a standard error from its cycles (5 play
+    ramps, 2–3 large branches per side), a small fraction of the value."""
+    from torsionfit.io import decimate, load_campaign
+    from torsionfit.metrics import cycle_classes, loading_fit, play_of
+    from torsionfit.report._record import record_classes, record_reader
+
+    campaign = decimate(load_campaign(MEASURED), 16)
+    run = campaign.runs[0]
+    classes = cycle_classes(run.time_s, run.torque_Nm, run.angle_rad)
+    play = play_of(classes.smallest)
+    fit = loading_fit(classes.largest, play)
+    reader = record_reader(record_classes(campaign))
+    theta = np.asarray(run.angle_rad)
+    got = [float(v) for v in reader.read_angles(theta, theta)]
+    assert got == pytest.approx([play, fit.compliance_pos, fit.compliance_neg], rel=1e-6)
+    readings = data_readings(campaign)
+    assert readings["play"]["value"] == pytest.approx(play / ARCMIN, rel=1e-9)
+    for name, r in readings.items():
+        assert r["run"] == "preload2-pos1" and 0 < r["se"] < 0.05 * r["value"], (name, r)

@@ -754,7 +754,8 @@ class Reading:
     se: float | None
 
 
-def _se(x: np.ndarray) -> float | None:
+def cycle_se(x: np.ndarray) -> float | None:
+    """Standard error of the mean of per-cycle values, std/√n (None with fewer than two)."""
     return float(np.std(x, ddof=1) / np.sqrt(len(x))) if len(x) >= 2 else None
 
 
@@ -767,10 +768,10 @@ def class_readings(small: AmplitudeClass, large: AmplitudeClass, *, name: str = 
     play = play_of(small)
     fit = loading_fit(large, play, name=name)
     pos, neg = loading_compliance_cycles(large, play, name=name)
-    se_pos, se_neg = _se(pos), _se(neg)
+    se_pos, se_neg = cycle_se(pos), cycle_se(neg)
     se_mean = None if se_pos is None or se_neg is None else 0.5 * float(np.hypot(se_pos, se_neg))
     return {
-        "play": Reading(play, _se(play_cycles(small))),
+        "play": Reading(play, cycle_se(play_cycles(small))),
         "compliance_loading_pos": Reading(fit.compliance_pos, se_pos),
         "compliance_loading_neg": Reading(fit.compliance_neg, se_neg),
         "compliance_loading": Reading(fit.compliance, se_mean),

@@ -2,20 +2,20 @@
 
 ``play`` and ``stiffness_loading`` (with the two loading compliances) are read off the data
 alone (``torsionfit.metrics``: the smallest cycles' loop width at zero torque, the largest
-cycles' loading branches) and off the fitted model, with the same definitions, on a noise-free
-record of the data's cycle amplitudes (``report/_derived.py``). The data's reading carries a
-standard error from the scatter of its cycles (``metrics.class_readings``).
+cycles' loading branches) and off the fitted model's noise-free prediction of the same record,
+with the same definitions (``report/_record.py``). The data's reading carries a standard error
+from the scatter of its cycles (``metrics.class_readings``).
 
 A fit whose 95 % HDI misses the data's own reading by more than two of those standard errors
 does not draw that feature of the loop: its interval is narrower than its error. On measured
-loops of printed cycloidal reducers that is the common case (the validation: the model's
-interval held the data's own loading compliance on 6 of 21 loops). Such a metric is flagged in
+loops of printed cycloidal reducers that is common (the validation's table counts the loops).
+Such a metric is flagged in
 ``fit.json`` and in the summary, and the data's reading is the one to report — a model that is
 confidently wrong says so.
 """
 
 from .._errors import InputError
-from ..metrics._hysteresis import Reading, _se, class_readings, play_cycles, play_of
+from ..metrics._hysteresis import Reading, class_readings, cycle_se, play_cycles, play_of
 from ..units import from_si
 from ._record import record_classes
 
@@ -51,7 +51,7 @@ def data_readings(campaign) -> dict[str, dict]:
     try:
         readings = class_readings(classes.small, classes.large, name=classes.large_run.name)
     except InputError:  # no loading slope to read: the data-only metrics' notes say why
-        readings = {"play": Reading(play_of(classes.small), _se(play_cycles(classes.small)))}
+        readings = {"play": Reading(play_of(classes.small), cycle_se(play_cycles(classes.small)))}
     readings["stiffness_loading"] = readings.pop("compliance_loading", None)
     out = {}
     for name, unit in UNITS.items():
