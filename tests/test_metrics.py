@@ -846,3 +846,18 @@ def test_play_ramps_of_five_percent_of_the_peak_are_a_class_of_their_own():
     classes = cycle_classes(time, tau, bench_angle(tau))
     assert [c.amplitude_Nm for c in classes.classes] == pytest.approx([2.0, PLATEAU], rel=0.1)
     assert play_from_arrays(time, tau, bench_angle(tau)) == pytest.approx(EXPECTED_PLAY, rel=1e-3)
+
+
+def test_branch_weights_are_the_branch_curves_and_a_branch_in_one_bin_is_an_error():
+    from torsionfit.metrics._hysteresis import branch_weights
+
+    time, tau = bench_protocol()
+    theta = bench_angle(tau)
+    classes = cycle_classes(time, tau, theta)
+    large = classes.largest
+    ids = [k for k in large.segment_ids if classes.segments[k][2] > 0]
+    w = branch_weights(classes.smoothed_torque_Nm, classes.segments, ids, large.torque_Nm)
+    np.testing.assert_allclose(w.curves(theta), large.lower_each_rad, rtol=0, atol=1e-15)
+    flat = np.zeros(20)  # a "ramp" that never leaves one torque bin
+    with pytest.raises(InputError, match="fewer than two torque bins"):
+        branch_weights(flat, [(0, 19, 1)], [0], np.linspace(-1.0, 1.0, 11))
