@@ -51,6 +51,7 @@ from torsionfit.fit import NoiseOptions, model_inputs
 from torsionfit.fit._problem import cycle_amplitude_shape
 from torsionfit.io import decimate, load_campaign
 from torsionfit.metrics import cycle_classes, loading_compliance_cycles, loading_fit, play_of
+from torsionfit.metrics._hysteresis import CLASS_METRICS
 from torsionfit.report import FitOptions, fit_campaign, metrics_against_data
 from torsionfit.units import ANGLE_UNITS
 
@@ -59,8 +60,6 @@ DATA = ROOT.parent / "shared" / "data" / "cycloidal-jv"
 EXAMPLES = ROOT / "examples" / "cycloidal-jv"
 sys.path.insert(0, str(ROOT / "benchmarks"))
 ARCSEC = ANGLE_UNITS["arcsec"]
-#: the model metrics the data read directly (fit.json's check against the data)
-CLASS_METRICS = ("play", "stiffness_loading", "compliance_loading_pos", "compliance_loading_neg")
 DEG = ANGLE_UNITS["deg"]
 EFFECTS = {"load_dependent_friction": {"lag": True}, "distributed_friction": True, "stiffness_nonlinearity": "power_law",
            "asymmetry": True}

@@ -11,6 +11,7 @@ import numpy as np
 from .._provenance import provenance
 from .._x64 import in_float64
 from ..fit import check_fittable
+from ..report._against_data import off_data_note
 from ..report import FitOptions, campaign_model, derived_metrics_for, fit_campaign, metrics_against_data, summarise
 from ._conformance import conformance, requirement_quantities
 from ._decision import Decision, decide_unit
@@ -68,10 +69,7 @@ def accept_campaign(campaign, spec: Spec, options: FitOptions = FitOptions(), se
     # misses: the model is confidently wrong there, and no decision is made from it
     metrics, off = metrics_against_data(fit)
     off_required = sorted({b.requirement.metric for b in bound} & set(off))
-    withheld = ("the model does not draw what the data read directly for " + ", ".join(
-        f"{name} (model 95 % HDI {metrics[name]['hdi95'][0]:.4g}–{metrics[name]['hdi95'][1]:.4g}, the data's "
-        f"{metrics[name]['data']['value']:.4g} {metrics[name]['unit']})" for name in off_required)
-        + ": decide on the data's reading (torsionfit metrics) or a model that follows the loop") if off_required else ""
+    withheld = off_data_note(metrics, off_required) if off_required else ""
     decision = decide_unit(conformance(bound, quantities), [b.requirement.name for b in bound], spec.p_accept,
                            converged=bool(d["converged"]), not_converged_reason=d.get("reason", ""),
                            withheld_reason=withheld)
