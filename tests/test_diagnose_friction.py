@@ -64,7 +64,15 @@ def _load_lag(rng):
             {"friction_load_coefficient": rng.uniform(0.05, 0.06), "friction_load_lag_time_s": rng.uniform(30.0, 40.0)}, ())
 
 
-CASES = {"load_dependent_friction": _load_dependent, "distributed_friction": _distributed, "gap_lag": _gap_lag}
+def _gap_hold(rng):
+    # the 1′ gap held by its own friction up to 20–40 N·m: each branch crosses it 20–40 N·m
+    # later than the 6 N·m friction alone puts it, at the same torque on both loops (380 and
+    # 190 N·m); the ±30 N·m play ramps cross it or not
+    return {"gap_hold": True}, {"gap_hold_torque_Nm": rng.uniform(20.0, 40.0)}, ()
+
+
+CASES = {"load_dependent_friction": _load_dependent, "distributed_friction": _distributed, "gap_lag": _gap_lag,
+         "gap_hold": _gap_hold}
 #: found in two steps (the load dependence, then its lag): a case of its own
 LAG_STEPS = ["load_dependent_friction", "friction_load_lag"]
 BUILDERS = {**CASES, "friction_load_lag": _load_lag}

@@ -297,7 +297,9 @@ def pairs_figure(fit, source: str):
     """Pairs of the physical parameters' posterior draws, in the units of :data:`SHOWN_UNITS`."""
     from matplotlib.ticker import MaxNLocator
 
-    draws = {k: v for k, v in _physics_draws(fit).items() if not k.startswith("friction_start")}
+    from .model import RUN_START_STATES
+
+    draws = {k: v for k, v in _physics_draws(fit).items() if not k.startswith(RUN_START_STATES)}
     names = list(draws)[:8]
     k = len(names)
     size = 1.9 * k + 1.2

@@ -11,7 +11,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..fit import temperatures_resolving_friction
-from ..model import DahlFriction, MaxwellSlipFriction, TemperatureDependence as TemperatureTerm, GapLag as GapLagTerm
+from ..model import (DahlFriction, HeldGapBacklash, MaxwellSlipFriction, SmoothBacklash, TemperatureDependence as TemperatureTerm,
+                     GapLag as GapLagTerm)
 from ..model._drift import WARM_UP_FRACTIONS
 from ..model._effects import DEFAULT_FRICTION_ELEMENTS
 from ._context import FitContext
@@ -455,6 +456,52 @@ class GapLag(Effect):
         return {**effects, self.name: True}
 
 
+#: hold torques the held-gap signature tries, as shares of the hysteresis runs' largest mesh torque
+GAP_HOLD_SHARES = (0.025, 0.05, 0.1, 0.2, 0.4)
+
+
+class GapHold(Effect):
+    name = "gap_hold"
+    signature_text = "gap crossed beyond the friction's shift, at the same torque whatever the loop's peak or rate"
+    extension_text = "a gap held by its own friction: crossed once the mesh torque exceeds ±T_h (a relay)"
+
+    def applicable(self, ctx):
+        # the smooth gap alone: a preloaded, stepped or no-load (closure) gap is another shape
+        return bool(ctx.hysteresis) and type(ctx.map_result.problem.model.backlash) is SmoothBacklash
+
+    def signature(self, ctx, alpha):
+        # Non-nested alternative (a P test, as the slip elements'), searched over the hold
+        # torque: for T_h at fixed shares of the largest mesh torque, the change of the
+        # prediction when the smooth gap is held up to T_h and the held gap's derivative in T_h
+        # there — the gap alone moved against the direction of loading, at the same torque
+        # whatever the peak or rate (a friction level moves the spring too, a damped crossing
+        # moves it by the rate). The strongest T_h is kept, its p-value Bonferroni-corrected for
+        # the search. The score at T_h → 0 sees only an infinitesimal shift at the crossing: on a
+        # gap held at 34 N·m (SYNTHETIC friction bench) it ranked fourth (log10 p −605), below a
+        # damped crossing's, and the held gap was never refitted. The gap's state before the
+        # first sample is the friction's.
+        problem = ctx.map_result.problem
+        alt = eqx.tree_at(lambda mm: mm.backlash, problem.model, HeldGapBacklash())
+        values = problem.physics_values(jnp.asarray(ctx.map_result.u))
+        start = np.asarray(values["friction_start"], float) if "friction_start" in values else np.zeros(problem.model.n_hysteresis)
+        peak = max(float(np.max(np.abs(r.mesh_torque_Nm))) for r in ctx.hysteresis)
+        best = None
+        for share in GAP_HOLD_SHARES:
+            hold = share * peak
+            ev = _score_test(
+                ctx, self.name, alt, {"gap_hold_torque": hold, "gap_start": start},
+                lambda pred, alt_pred, alt_jac: np.stack([alt_pred - pred, alt_jac["gap_hold_torque"] * hold], axis=1),
+                f"residual along the change from the smooth gap to one held by its own friction up to ±{hold:.3g} N·m "
+                "of mesh torque and the held gap's derivative in its hold torque: the gap crossed later along each "
+                "branch, the loaded flanks not moved", {"hold_torque_Nm": hold})
+            if best is None or ev.log10_p < best.log10_p:
+                best = ev
+        return replace(best, log10_p=min(0.0, best.log10_p + float(np.log10(len(GAP_HOLD_SHARES)))))
+
+    def extend(self, effects, evidence, ctx):
+        return {**effects, self.name: True}
+
+
 class TemperatureDependence(Effect):
     name = "temperature_dependence"
     signature_text = "residual that changes with the runs' temperatures: TE level and loop slope move with it"
@@ -512,4 +559,5 @@ CATALOG: tuple[Effect, ...] = (
     DistributedFriction(),
     TemperatureDependence(),
     GapLag(),
+    GapHold(),
 )

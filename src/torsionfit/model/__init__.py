@@ -5,13 +5,14 @@ from ._backlash import (
     AbstractBacklash as AbstractBacklash,
     ClosedGapBacklash as ClosedGapBacklash,
     FrictionClosureBacklash as FrictionClosureBacklash,
+    HeldGapBacklash as HeldGapBacklash,
     NoBacklash as NoBacklash,
     PreloadedBacklash as PreloadedBacklash,
     ResidualPlayBacklash as ResidualPlayBacklash,
     SmoothBacklash as SmoothBacklash,
     SteppedBacklash as SteppedBacklash,
 )
-from ._campaign_model import COMPONENTS as COMPONENTS, CampaignModel as CampaignModel
+from ._campaign_model import COMPONENTS as COMPONENTS, RUN_START_STATES as RUN_START_STATES, CampaignModel as CampaignModel
 from ._compliance import (
     AbstractCompliance as AbstractCompliance,
     AsymmetricCompliance as AsymmetricCompliance,

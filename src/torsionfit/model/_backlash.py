@@ -7,14 +7,29 @@ import jax
 import jax.numpy as jnp
 
 from ._parameter import Parameter
+from ._play import play_scan
+from ._recurrence import ScanMethod
 
 
 class AbstractBacklash(eqx.Module):
+    """Geometric lost motion θ_g (rad) as a function of the mesh torque (N·m)."""
+
+    #: the gap's twist depends on the run's history (a state carried through the run), not on
+    #: the mesh torque alone
+    hysteretic = False
+
     @abc.abstractmethod
     def parameters(self) -> tuple[Parameter, ...]: ...
 
     @abc.abstractmethod
-    def __call__(self, params, mesh_torque_Nm): ...
+    def __call__(self, params, mesh_torque_Nm):
+        """The gap's twist (rad) at each mesh torque, its history aside (a TE run's steady
+        state, the geometric component at the applied torque)."""
+
+    def run_twist(self, params, mesh_torque_Nm, method: ScanMethod = "auto", initial_state=None):
+        """The gap's twist (rad) along one run's mesh torque sequence, its history carried
+        (``initial_state``: the state at the first sample, for a hysteretic gap)."""
+        return self(params, mesh_torque_Nm)
 
 
 class SmoothBacklash(AbstractBacklash):
@@ -171,6 +186,53 @@ class SteppedBacklash(AbstractBacklash):
     def __call__(self, params, mesh_torque_Nm):
         steps = jnp.tanh((mesh_torque_Nm[..., None] - self.centres_Nm()) / params["gap_torque"])
         return 0.5 * params["gap"] * steps @ self.shares(params)
+
+
+class HeldGapBacklash(AbstractBacklash):
+    """A gap held by its own friction: the flanks cross the gap only once the mesh torque
+    exceeds a hold torque T_h, and then stay on their side until the torque exceeds T_h the
+    other way — a relay, not a function of the torque. Split-pinwheel (anti-backlash) designs
+    do this: their preloaded halves slide across the gap when the load overcomes the friction
+    the preload holds them with, so a measured preloaded loop crosses its gap in one jump at a
+    torque set by the preload (about ±12 N·m on the measured preload-3 units, whatever the
+    peak), and small cycles within ±T_h (play ramps) never cross it.
+
+    Smooth and exact per sample, the gap state g ∈ [−1, 1] is a play operator between two
+    smooth gap curves:
+
+        ``g ← clamp(g, tanh((τ_m − T_h)/τ_β), tanh((τ_m + T_h)/τ_β))``,  ``θ_g = (β/2)·g``
+
+    T_h → 0 is :class:`SmoothBacklash`. Away from a run's history (a TE run's steady state, the
+    geometric component at the applied torque) the gap is the smooth one; what holding it adds
+    is hysteresis, booked as friction. ``initial_state`` g0 is the state at the first sample
+    (0: the flanks midway in the gap), clamped to the band there."""
+
+    hysteretic = True
+    initial_state: float = eqx.field(static=True, default=0.0)
+
+    def parameters(self):
+        return SmoothBacklash().parameters() + (
+            Parameter("gap_hold_torque", "positive", "N·m",
+                      "hold torque T_h: mesh torque beyond which the flanks cross the gap", vanishes_at_zero=True),
+        )
+
+    def __call__(self, params, mesh_torque_Nm):
+        return SmoothBacklash()(params, mesh_torque_Nm)
+
+    def band(self, params, mesh_torque_Nm):
+        """(lower, upper) bound of the gap state g at each mesh torque."""
+        w, th = params["gap_torque"], params["gap_hold_torque"]
+        return jnp.tanh((mesh_torque_Nm - th) / w), jnp.tanh((mesh_torque_Nm + th) / w)
+
+    def state(self, params, mesh_torque_Nm, method: ScanMethod = "auto", initial_state=None):
+        """Gap state g per sample, in [−1, 1] (−1: closed on the − flank, +1: on the + flank)."""
+        lo, hi = self.band(params, jnp.asarray(mesh_torque_Nm))
+        g0 = jnp.clip(jnp.asarray(self.initial_state if initial_state is None else initial_state, dtype=lo.dtype),
+                      lo[0], hi[0])
+        return jnp.concatenate([g0[None], play_scan(lo[1:], hi[1:], g0, method)])
+
+    def run_twist(self, params, mesh_torque_Nm, method: ScanMethod = "auto", initial_state=None):
+        return 0.5 * params["gap"] * self.state(params, mesh_torque_Nm, method, initial_state)
 
 
 class NoBacklash(AbstractBacklash):

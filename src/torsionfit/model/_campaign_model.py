@@ -34,6 +34,10 @@ from ._temperature import TemperatureDependence
 
 COMPONENTS = ("elastic", "friction", "geometric", "creep", "kinematic", "drift", "offset")
 
+#: parameters holding a hysteresis run's state at its first sample (a run may start anywhere in
+#: the unit's history): the friction state z0 and, with a hysteretic gap, the gap state g0
+RUN_START_STATES = ("friction_start", "gap_start")
+
 
 class CampaignModel(eqx.Module):
     """Forward model of a campaign with ``run_kinds`` (in campaign order).
@@ -96,6 +100,8 @@ class CampaignModel(eqx.Module):
             out += (Parameter("torque_offset", "real", "N·m", "torque-sensor offset"),)
         if self.free_friction_start and self.n_hysteresis:
             out += (Parameter("friction_start", "signed_unit", "1", "friction state z at the start of each hysteresis run", self.n_hysteresis),)
+            if self.backlash.hysteretic:
+                out += (Parameter("gap_start", "signed_unit", "1", "gap state g at the start of each hysteresis run", self.n_hysteresis),)
         if self.n_hysteresis:
             out += (
                 Parameter("angle_offset", "real", "rad", "θ_0 per hysteresis run", self.n_hysteresis, True),
@@ -139,8 +145,8 @@ class CampaignModel(eqx.Module):
         friction_params, factor = self._at_temperature(params, data)
         elastic = factor * self.compliance(params, torque)
         geometric = self.backlash(params, torque)
-        friction = self._spring(params, factor, torque, mesh) + self.backlash(params, mesh) - elastic - geometric
-        creep = creep + self._gap_delay(params, data, mesh)
+        friction = self._spring(params, factor, torque, mesh) + self._gap(params, mesh, hyst_index) - elastic - geometric
+        creep = creep + self._gap_delay(params, data, mesh, hyst_index)
         zeros = jnp.zeros_like(torque)
         return self._finish(
             dict(elastic=elastic, friction=friction, geometric=geometric, creep=creep,
@@ -155,8 +161,15 @@ class CampaignModel(eqx.Module):
         torque) — what a fit evaluates, one compliance and one backlash pass fewer."""
         torque, mesh, _, creep, drift, offset = self._hysteresis_drive(params, data, run_index, hyst_index)
         _, factor = self._at_temperature(params, data)
-        gap = self.backlash(params, self._gap_torque(params, data, mesh))
+        gap = self._gap(params, self._gap_torque(params, data, mesh), hyst_index)
         return self._spring(params, factor, torque, mesh) + gap + creep + drift + offset
+
+    def _gap(self, params, gap_torque, hyst_index):
+        """The gap's twist (rad) along a hysteresis run, its state carried from the run's start."""
+        g0 = None
+        if self.backlash.hysteretic and self.free_friction_start:
+            g0 = jnp.atleast_1d(params["gap_start"])[hyst_index]
+        return self.backlash.run_twist(params, gap_torque, self.scan, g0)
 
     def _spring(self, params, factor, torque, mesh):
         """Elastic twist (rad) at the mesh torque, a share of it at the applied torque when the
@@ -169,12 +182,12 @@ class CampaignModel(eqx.Module):
         """The torque the gap sees (N·m): the mesh torque, lagged when the crossing is damped."""
         return mesh if self.gap_lag is None else self.gap_lag.gap_torque(params, data.time_s, mesh, self.scan)
 
-    def _gap_delay(self, params, data, mesh):
+    def _gap_delay(self, params, data, mesh, hyst_index):
         """What the damped gap crossing changes (rad): the gap at the lagged minus at the mesh
         torque — rate-dependent, booked with creep."""
         if self.gap_lag is None:
             return jnp.zeros_like(mesh)
-        return self.backlash(params, self._gap_torque(params, data, mesh)) - self.backlash(params, mesh)
+        return self._gap(params, self._gap_torque(params, data, mesh), hyst_index) - self._gap(params, mesh, hyst_index)
 
     def te_components(self, params, data: TEInput, run_index: int):
         """Components (rad) of one TE run over its output angles, plus ``total`` and ``mesh_torque``."""

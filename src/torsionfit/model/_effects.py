@@ -1,7 +1,7 @@
 """Switching model extensions on by name (the effects catalog's names, DESIGN §3)."""
 
 from .._errors import InputError
-from ._backlash import (DEFAULT_GAP_STEPS, ClosedGapBacklash, FrictionClosureBacklash, PreloadedBacklash, ResidualPlayBacklash,
+from ._backlash import (DEFAULT_GAP_STEPS, ClosedGapBacklash, FrictionClosureBacklash, HeldGapBacklash, PreloadedBacklash, ResidualPlayBacklash,
                         SmoothBacklash, SteppedBacklash)
 from ._campaign_model import CampaignModel
 from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, PreloadedCompliance, ThreeSegmentCompliance
@@ -20,7 +20,7 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     """The base model plus the extensions named in ``effects`` (the catalog names of
     DESIGN §3: ``stiffness_nonlinearity``, ``rate_dependence``, ``kinematic_error``,
     ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``,
-    ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``, ``gap_preload``, ``gap_lag``,
+    ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``, ``gap_preload``, ``gap_hold``, ``gap_lag``,
     ``series_compliance``, ``preload_stiffening``), as a bench file's ``[effects]``
     table or a user's switches give them. ``fitted``: the model a fit estimates, whose gap
     is :class:`FrictionClosureBacklash` when no run is a hysteresis run (the same curve, with the
@@ -65,11 +65,14 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     steps = _gap_steps(effects.get("gap_steps", False))
     if steps is not None and (preload is not None or closed):
         raise InputError("[effects].gap_steps: needs a hysteresis run and cannot be combined with gap_preload")
+    hold = _switched("gap_hold", effects.get("gap_hold", False), HeldGapBacklash)
+    if hold is not None and (closed or preload is not None or steps is not None):
+        raise InputError("[effects].gap_hold: needs a hysteresis run and cannot be combined with gap_preload or gap_steps")
     if closed:
         loaded = te_loads_Nm is not None and len(te_loads_Nm) > 0 and min(abs(float(t)) for t in te_loads_Nm) > 0
         backlash = ClosedGapBacklash() if loaded else FrictionClosureBacklash()
     else:
-        backlash = preload if preload is not None else steps if steps is not None else SmoothBacklash()
+        backlash = next((b for b in (preload, steps, hold) if b is not None), SmoothBacklash())
     return CampaignModel(
         backlash=backlash,
         temperature=_temperature(effects.get("temperature_dependence", False)),

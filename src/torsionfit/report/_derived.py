@@ -92,7 +92,7 @@ def _single_run_params(model: m.CampaignModel, params: dict) -> dict:
     ``params`` only the physics and the ``METRIC_LINEAR`` entries."""
     out = {}
     for p in model.parameters():
-        if p.name == "friction_start" or (p.linear and p.name not in METRIC_LINEAR):
+        if p.name in m.RUN_START_STATES or (p.linear and p.name not in METRIC_LINEAR):
             out[p.name] = jnp.zeros(p.size)  # the protocol starts at rest; no run offsets
         elif p.name == "torque_offset":
             out[p.name] = jnp.asarray(0.0)

@@ -74,6 +74,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._x64 import in_float64
+from ..model import RUN_START_STATES
 from ._convergence import chain_diagnostics, rhat_ess_shortfall
 from ._emcee import ConvergenceWarning, SampleResult, _regularised_cov
 
@@ -188,7 +189,7 @@ class Coordinates(eqx.Module):
         floors = np.maximum(np.asarray(problem.floors, dtype=float), 1e-300)
         ar1_counts = counts[np.flatnonzero(np.asarray(problem.ar1, dtype=bool))]
         names = problem.names([""] * r) if hasattr(problem, "names") else []  # the problem's own layout of u
-        history = tuple(i for i, name in enumerate(names) if name.split("[")[0] == "friction_start")
+        history = tuple(i for i, name in enumerate(names) if name.split("[")[0] in RUN_START_STATES)
         return Coordinates((n, n + r), (n + r, n + r + int(problem.n_ar1)),
                            jnp.asarray(np.log(floors) + 0.25 * np.log(2.0 / counts)),
                            jnp.asarray(1.0 / np.sqrt(ar1_counts)), lost_motion=_lost_motion_pair(problem),

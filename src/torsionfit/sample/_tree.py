@@ -81,6 +81,7 @@ __all__ = ["MAX_POINTWISE_VALUES", "convergence_summary", "draw_thinning", "load
 _VECTOR_DIMS = {
     "angle_offset": "hysteresis_run",
     "friction_start": "hysteresis_run",
+    "gap_start": "hysteresis_run",
     "drift": "run",
     "kin_cos": "kinematic_order",
     "kin_sin": "kinematic_order",
