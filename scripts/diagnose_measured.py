@@ -3,7 +3,7 @@
 write OUT/<unit>/diagnose.json with its figures, and OUT/measured-trail.md (the trail table
 the README quotes) and OUT/measured-trail.json.
 
-    .venv/bin/python scripts/diagnose_measured.py -o docs/diagnose            # the README's two loops
+    .venv/bin/python scripts/diagnose_measured.py -o docs/diagnose            # the README's three loops
     .venv/bin/python scripts/diagnose_measured.py -o out/diagnose --all       # all 21 loops
 """
 
@@ -19,8 +19,9 @@ from torsionfit.io import decimate, load_campaign
 
 ROOT = Path(__file__).resolve().parents[1]
 MANIFESTS = ROOT / "examples" / "cycloidal-jv"
-#: one loop per design, both new (initial) and at the same rotor position
-DEFAULT_UNITS = ["baseline-pccf-initial-pos1", "split-pccf-initial-pos1"]
+#: one loop per design, both new (initial) and at the same rotor position, and the most preloaded
+#: split unit at another, whose gap is held up to the preload
+DEFAULT_UNITS = ["baseline-pccf-initial-pos1", "split-pccf-initial-pos1", "split-pccf-preload3-pos6"]
 NOISE_TEXT = {"off": "iid noise, `--ar1 off`", "on": "AR(1) noise", "auto": "the fit's default noise, AR(1) on these runs"}
 
 

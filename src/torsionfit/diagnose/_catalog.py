@@ -42,6 +42,11 @@ class Effect(abc.ABC):
     def extend(self, effects: dict, evidence: Evidence, ctx: FitContext) -> dict:
         """The ``effects`` switches with this effect's extension added."""
 
+    def start_values(self, evidence: Evidence) -> dict:
+        """Values (SI) of the extension's new scalar parameters where the signature found the
+        effect, tried as a further start of its refit besides the nested one; none by default."""
+        return {}
+
 
 def _t(run, ctx):
     return run.mesh_torque_Nm / ctx.rated_torque_Nm
@@ -476,7 +481,9 @@ class GapHold(Effect):
         # there — the gap alone moved against the direction of loading, at the same torque
         # whatever the peak or rate (a friction level moves the spring too, a damped crossing
         # moves it by the rate). The strongest T_h is kept, its p-value Bonferroni-corrected for
-        # the search. The score at T_h → 0 sees only an infinitesimal shift at the crossing: on a
+        # the search. One-sided: a hold only moves the crossing later, so a T_h whose change
+        # enters the residual with a negative coefficient (the data cross earlier than the
+        # model, as on the measured split loop) is no evidence for it. The score at T_h → 0 sees only an infinitesimal shift at the crossing: on a
         # gap held at 34 N·m (SYNTHETIC friction bench) it ranked fourth (log10 p −605), below a
         # damped crossing's, and the held gap was never refitted. The gap's state before the
         # first sample is the friction's.
@@ -494,9 +501,19 @@ class GapHold(Effect):
                 f"residual along the change from the smooth gap to one held by its own friction up to ±{hold:.3g} N·m "
                 "of mesh torque and the held gap's derivative in its hold torque: the gap crossed later along each "
                 "branch, the loaded flanks not moved", {"hold_torque_Nm": hold})
-            if best is None or ev.log10_p < best.log10_p:
+            later = bool(ev.details.get("coefficients")) and ev.details["coefficients"][0] > 0
+            if later and (best is None or ev.log10_p < best.log10_p):
                 best = ev
+        if best is None:
+            return Evidence(self.name, 0.0, 0, 0.0, 0.0, "residual moves the gap crossing earlier, not later, than a "
+                            "smooth gap: no hold torque explains it")
         return replace(best, log10_p=min(0.0, best.log10_p + float(np.log10(len(GAP_HOLD_SHARES)))))
+
+    def start_values(self, evidence):
+        # the nested start holds the gap at T_h ≈ 0, where the relay is the smooth gap and the
+        # hold's gradient lives at the crossing alone: on the measured split loop the refit from
+        # there (and from the prior's starts) stayed at the smaller model's optimum (ΔELPD −2)
+        return {"gap_hold_torque": evidence.details["hold_torque_Nm"]} if "hold_torque_Nm" in evidence.details else {}
 
     def extend(self, effects, evidence, ctx):
         return {**effects, self.name: True}

@@ -18,6 +18,7 @@ from scipy.stats import median_abs_deviation
 from .._x64 import in_float64
 from ..fit import NoiseOptions, build_problem, fit_map
 from ..fit._map import nested_start
+from ..fit._transform import inverse
 from ..io import Campaign
 from ..model import model_with_effects
 from ..units import ANGLE_UNITS
@@ -92,10 +93,12 @@ class Diagnosis:
 
 @in_float64
 def fit_with(campaign: Campaign, effects: dict, options: DiagnoseOptions, seed: int,
-             warm: "Fitted | None" = None) -> Fitted:
+             warm: "Fitted | None" = None, start_values: dict | None = None) -> Fitted:
     """MAP fit of ``campaign`` with ``effects``. ``warm``: the fit this one extends — its optimum
     is tried as a start as well, so an extension never ends below the model it contains
-    because its own starts (from the prior) fell into a worse optimum."""
+    because its own starts (from the prior) fell into a worse optimum. ``start_values``: new
+    parameters' values (SI) where the signature found the effect; that optimum with them set is
+    tried too."""
     t0 = time.perf_counter()
     model = model_with_effects([r.kind for r in campaign.runs], effects, campaign.reducer.rated_torque_Nm,
                                free_friction_start=True, fitted=True, te_loads_Nm=[r.torque_Nm for r in campaign.te_runs])
@@ -105,6 +108,13 @@ def fit_with(campaign: Campaign, effects: dict, options: DiagnoseOptions, seed: 
     if warm is not None:
         prev = warm.map_result
         starts = nested_start(problem, names, prev.u, prev.names)[None, :]
+        if start_values:
+            found = starts[0].copy()
+            layout = problem.names(names)
+            for p in problem.physics:
+                if p.name in start_values:
+                    found[layout.index(p.name)] = float(inverse(p.constraint, start_values[p.name]))
+            starts = np.stack([starts[0], found])
     result = fit_map(problem, names, n_starts=options.n_starts, seed=seed, warm_starts=starts)
     ctx = fit_context(campaign, effects, result)
     scored = score(problem, result, options.loo_draws, seed)
@@ -151,7 +161,7 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
         for effect, ev in candidates[: options.candidates_per_step]:
             trial_effects = effect.extend(effects, ev, current.context)
             say(f"trying {effect.name} (log10 p = {ev.log10_p:.1f})")
-            trial = fit_with(campaign, trial_effects, options, seed, warm=current)
+            trial = fit_with(campaign, trial_effects, options, seed, warm=current, start_values=effect.start_values(ev))
             c = compare(current.score, trial.score)
             if c.delta > options.min_delta_elpd and c.delta > options.se_factor * c.se:
                 accepted = Step(effect.name, ev, current, trial, c, kept=True)
