@@ -62,7 +62,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 ARCSEC = ANGLE_UNITS["arcsec"]
 DEG = ANGLE_UNITS["deg"]
 EFFECTS = {"load_dependent_friction": {"lag": True}, "distributed_friction": True, "stiffness_nonlinearity": "power_law",
-           "asymmetry": True}
+           "asymmetry": True, "gap_hold": True}
 SOURCE = "REAL measured data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0"
 
 
