@@ -68,6 +68,7 @@ ZOO = (
     _friction("load_dependent_friction"),
     _friction("distributed_friction"),
     _friction("gap_lag"),
+    _friction("gap_hold"),
     Entry("friction level lagging the load", "friction/base.toml",
           lambda folder: tf.friction_case(folder, "friction_load_lag", 0), ("load_dependent_friction", "friction_load_lag")),
     Entry("warm-up drift", "effects/base.toml, a(1 − e^(−t/T)) added to the readings", td.warm_up_case,
