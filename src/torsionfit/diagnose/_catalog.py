@@ -490,12 +490,12 @@ class GapHold(Effect):
         # lowers the loading branch on (0, T_h) and raises the unloading one on (−T_h, 0), whose
         # odd, single-valued part is what a curved spring leaves (SYNTHETIC effects bench: with a
         # stiffening spring and no hold the held gap ranked first and was added, ΔELPD 84 ± 34).
-        # One-sided: a hold only moves the crossing later, so a T_h whose change
-        # enters the residual with a negative coefficient (the data cross earlier than the
-        # model, as on the measured split loop) is no evidence for it. The score at T_h → 0 sees only an infinitesimal shift at the crossing: on a
-        # gap held at 34 N·m (SYNTHETIC friction bench) it ranked fourth (log10 p −605), below a
-        # damped crossing's, and the held gap was never refitted. The gap's state before the
-        # first sample is the friction's.
+        # One-sided: a hold only moves the crossing later, so a T_h whose change enters the
+        # residual with a negative coefficient (the data cross earlier than the model, as on the
+        # measured split initial loop) is no evidence for it. The score at T_h → 0 sees only an
+        # infinitesimal shift at the crossing: on a gap held at 34 N·m (SYNTHETIC friction bench)
+        # it ranked fourth (log10 p −605), below a damped crossing's, and the held gap was never
+        # refitted. The gap's state before the first sample is the friction's.
         problem = ctx.map_result.problem
         alt = eqx.tree_at(lambda mm: mm.backlash, problem.model, HeldGapBacklash())
         values = problem.physics_values(jnp.asarray(ctx.map_result.u))
