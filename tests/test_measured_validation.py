@@ -196,9 +196,11 @@ def test_the_validation_draws_from_the_split_normal_and_the_gaussian_on_request(
 def test_a_friction_level_lagging_the_load_predicts_a_held_out_ramp_better(tmp_path):
     """REAL data (split reassembled-pos5): fitted without its last large ramp, the MAP with the
     friction level following the load through a lag predicts that ramp better than the MAP
-    with the instantaneous level (validation run: 654″ → 553″ for the posterior means). The
-    MAP alone, as the validation's fit finds it (its starts and step budget, one noise level):
-    the posterior is not needed for the comparison."""
+    with the instantaneous level, in the validation's model (held gap included). The MAP
+    alone, as the validation's fit finds it (its starts and step budget, one noise level): the
+    posterior is not needed for the comparison. With the held gap the lag's gain is smaller
+    (MAP 496″ → 473″, 4.6 %) than with a smooth gap (650″ → 563″, 13 %): the hold takes part
+    of the crossing's shift the lag took; asked here: at least 3 %."""
     from types import SimpleNamespace
 
     import torsionfit
@@ -227,4 +229,4 @@ def test_a_friction_level_lagging_the_load_predicts_a_held_out_ramp_better(tmp_p
             pred = mv._predict(SimpleNamespace(problem=problem), whole, values)[0]
         rmse[name] = float(np.sqrt(np.mean((y[held] - pred[held]) ** 2)) / mv.ARCSEC)
     print(rmse)
-    assert rmse["lagged"] < 0.95 * rmse["instantaneous"], rmse
+    assert rmse["lagged"] < 0.97 * rmse["instantaneous"], rmse
