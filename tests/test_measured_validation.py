@@ -230,3 +230,19 @@ def test_a_friction_level_lagging_the_load_predicts_a_held_out_ramp_better(tmp_p
         rmse[name] = float(np.sqrt(np.mean((y[held] - pred[held]) ** 2)) / mv.ARCSEC)
     print(rmse)
     assert rmse["lagged"] < 0.97 * rmse["instantaneous"], rmse
+
+
+def test_the_preloaded_play_ramps_are_far_narrower_in_torque_than_the_largest_cycles(tmp_path):
+    """What scripts/measured_start_probe.py starts from (REAL data): on the six preloaded split
+    loops the ±4 N·m play ramps are 1–1.6 N·m wide in torque (half their width at the mid
+    angle), the largest cycles over three times that — the friction level the small cycles
+    allow, against the 4–11 N·m median break-away the fit takes."""
+    from torsionfit.io import load_campaign
+
+    spec = importlib.util.spec_from_file_location("_measured_start_probe", ROOT / "scripts" / "measured_start_probe.py")
+    probe = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(probe)
+    assert len(probe.DEFAULT_UNITS) == 6
+    for unit in probe.DEFAULT_UNITS:
+        small, large = probe.readings_Nm(load_campaign(mv.manifest(unit, None, tmp_path)))
+        assert 1.0 < small < 1.6 and large > 3.0 * small, (unit, small, large)
