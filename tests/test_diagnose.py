@@ -264,14 +264,15 @@ ZOO_ONLY = ("kinematic_error", "thermal_drift", "asymmetry")
 #: catalog entries, the zoo's table (docs/diagnose/zoo.md) does
 ZOO_FOR_TIME = ("rate_dependence", "speed_dependence", "torque_offset")
 RUN_ZOO_CASES = os.environ.get("TORSIONFIT_DIAGNOSE_ZOO_CASES") == "1"
+ZOO_FOR_TIME_SKIP = pytest.mark.skipif(not RUN_ZOO_CASES, reason="a diagnose-zoo case left out of the suite for its "
+                                       "time (scripts/diagnose_zoo.py runs it): TORSIONFIT_DIAGNOSE_ZOO_CASES=1 runs it here")
 
 
 def _case_marks(name: str) -> tuple:
     if name in KNOWN_FAILURES:
         return (pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES[name]),)
     if name in ZOO_FOR_TIME:
-        return (pytest.mark.skipif(not RUN_ZOO_CASES, reason="a diagnose-zoo case left out of the suite for its time "
-                                   "(scripts/diagnose_zoo.py runs it): TORSIONFIT_DIAGNOSE_ZOO_CASES=1 runs it here"),)
+        return (ZOO_FOR_TIME_SKIP,)
     return ()
 
 
@@ -397,8 +398,7 @@ def warm_up_case(folder: Path) -> Case:
     return Case(campaign, _seed("diagnose", "warm-up") % 1000, {"thermal_drift": "warm_up"}, truth)
 
 
-@pytest.mark.skipif(not RUN_ZOO_CASES, reason="a diagnose-zoo case left out of the suite for its time "
-                    "(scripts/diagnose_zoo.py runs it): TORSIONFIT_DIAGNOSE_ZOO_CASES=1 runs it here")
+@ZOO_FOR_TIME_SKIP
 def test_saturating_drift_closes_to_the_noise(tmp_path):
     """Each run of base.toml starts cold: a(1 − e^(−t/T)) added to its readings, T 10–40 % of the
     run, |a| 4–8″ (SYNTHETIC, added to the simulated campaign before it is written). A linear
