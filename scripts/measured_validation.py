@@ -119,6 +119,7 @@ def fit_options(args) -> FitOptions:
     return FitOptions(effects=args.effects, sampler=args.sampler, progress=False, decimate=args.decimate,
                       laplace_shape=args.laplace_shape,
                       max_steps=args.max_steps, n_starts=args.starts, misfit_inflation=not args.no_misfit_inflation,
+                      hop_to_the_hold=getattr(args, "hop_to_the_hold", False),
                       noise=NoiseOptions(ar1=None if args.ar1 else False, cycle_amplitude_noise=args.cycle_noise,
                                          cycle_class_noise=args.class_noise,
                                          torque_error_variance=not args.no_torque_error_variance))
@@ -391,10 +392,12 @@ def posterior_text(sampler: str, laplace_shape: str) -> str:
         if laplace_shape == "split" else "laplace (the Gaussian)"
 
 
-def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise: str, laplace_shape: str = "gaussian") -> str:
+def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise: str, laplace_shape: str = "gaussian",
+             hop: bool = False) -> str:
     rows = sorted(rows, key=lambda r: r["unit"])  # the table in unit order, whatever order they were fitted in
     lines = [
         f"Measured loops ({SOURCE}). Model: base + {json.dumps(effects)}, "
+        + ("the MAP hopped to the hold mode where that is higher (--hop-to-the-hold), " if hop else "") +
         f"{NOISE_TEXT[noise]}, posterior by {posterior_text(sampler, laplace_shape)}, fitted to each file without its last large ramp (block means of {decimate} samples). "
         "RMSE in arcsec on the raw samples; held-out = the last large ramp predicted from the rest of the file "
         "(posterior mean of the draws' predictions; (MAP): the prediction of the MAP alone); "
@@ -573,6 +576,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--class-noise", action=argparse.BooleanOptionalAction, default=True,
                         help="a noise level per cycle class, their ratio read at the MAP (NoiseOptions.cycle_class_noise; "
                              "default on; --no-class-noise: one level per file)")
+    parser.add_argument("--hop-to-the-hold", action="store_true",
+                        help="one more MAP run from the hold mode the cycles' readings point at (FitOptions.hop_to_the_hold)")
     parser.add_argument("--effects", type=json.loads, default=EFFECTS, help=f"model effects as JSON (default {json.dumps(EFFECTS)})")
     parser.add_argument("--save-predictions", type=Path, default=None,
                         help="also write each unit's data and predictive draws to DIR/<unit>.npz (derived from the "
@@ -606,7 +611,7 @@ def _main(args) -> int:
             (args.output / "validation.json").write_text(json.dumps(doc, indent=1, default=float))
         # written before the noise / the Laplace shape were recorded: AR(1) / the Gaussian
         text = markdown(doc["units"], doc.get("decimate", args.decimate), doc.get("sampler", args.sampler), doc.get("effects", args.effects),
-                        doc.get("noise", "ar1"), doc.get("laplace_shape", "gaussian"))
+                        doc.get("noise", "ar1"), doc.get("laplace_shape", "gaussian"), doc.get("hop_to_the_hold", False))
         (args.output / "validation.md").write_text(text + "\n")
         print(text)
         return 0
@@ -627,7 +632,7 @@ def _main(args) -> int:
             results = map(_validate_in_float64, units, [args] * len(units))
         # each row is written as it comes (in order), so a run cut short keeps what it has done
         rows = _write_rows(args, units, results)
-    text = markdown(rows, args.decimate, args.sampler, args.effects, _noise(args), args.laplace_shape)
+    text = markdown(rows, args.decimate, args.sampler, args.effects, _noise(args), args.laplace_shape, args.hop_to_the_hold)
     (args.output / "validation.md").write_text(text + "\n")
     print(text)
     return 0
@@ -641,7 +646,9 @@ def _write_rows(args, units, results) -> list[dict]:
               f"ratio {row['ratio_held_out']:.2f}), coverage {100 * row['coverage90_held_out']:.0f} %, fit {row['seconds_fit']:.0f} s", file=sys.stderr)
         (args.output / "validation.json").write_text(json.dumps({"source": SOURCE, "decimate": args.decimate, "sampler": args.sampler,
                                                                        "effects": args.effects, "noise": _noise(args),
-                                                                       "laplace_shape": args.laplace_shape, "units": rows},
+                                                                       "laplace_shape": args.laplace_shape,
+                                                                       **({"hop_to_the_hold": True} if args.hop_to_the_hold else {}),
+                                                                       "units": rows},
                                                                       indent=1, default=float))
     return rows
 

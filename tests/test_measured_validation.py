@@ -3,6 +3,7 @@ numbers read from the data's README, the train/whole-file manifests — on the R
 loops (JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0; read from ../shared/data,
 skipped when absent). The whole validation run is a command (minutes per file), not a test."""
 
+import argparse
 import importlib.util
 from pathlib import Path
 
@@ -233,16 +234,21 @@ def test_a_friction_level_lagging_the_load_predicts_a_held_out_ramp_better(tmp_p
 
 
 def test_the_preloaded_play_ramps_are_far_narrower_in_torque_than_the_largest_cycles(tmp_path):
-    """What scripts/measured_start_probe.py starts from (REAL data): on the six preloaded split
-    loops the ±4 N·m play ramps are 1–1.6 N·m wide in torque (half their width at the mid
-    angle), the largest cycles over three times that — the friction level the small cycles
-    allow, against the 4–11 N·m median break-away the fit takes."""
+    """What the hop to the hold (``report._pipeline.hop_to_the_hold``) and
+    scripts/measured_start_probe.py start from (REAL data): on the six preloaded split loops the
+    ±4 N·m play ramps are 1–1.6 N·m wide in torque (half their width at the mid angle), the
+    largest cycles over three times that — the friction level the small cycles allow, against
+    the 4–11 N·m median break-away the fit takes."""
+    from torsionfit.fit._prior import cycle_friction_readings_Nm
     from torsionfit.io import load_campaign
 
     spec = importlib.util.spec_from_file_location("_measured_start_probe", ROOT / "scripts" / "measured_start_probe.py")
     probe = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(probe)
     assert len(probe.DEFAULT_UNITS) == 6
+    assert probe._move("gap_hold_torque=1.5") == ("gap_hold_torque", 1.5)
+    with pytest.raises(argparse.ArgumentTypeError, match="NAME=VALUE"):
+        probe._move("gap_hold_torque")
     for unit in probe.DEFAULT_UNITS:
-        small, large = probe.readings_Nm(load_campaign(mv.manifest(unit, None, tmp_path)))
+        small, large = cycle_friction_readings_Nm(load_campaign(mv.manifest(unit, None, tmp_path)))
         assert 1.0 < small < 1.6 and large > 3.0 * small, (unit, small, large)

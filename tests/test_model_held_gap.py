@@ -137,3 +137,26 @@ def test_a_fit_finds_the_held_gap_on_a_bench_and_no_hold_on_a_free_one(tmp_path)
     free = fit_campaign(_friction_bench(tmp_path).campaign, options, seed=0)
     hold = np.asarray(free.metric_values["gap_hold_torque"])
     assert np.quantile(hold, 0.975) < 3.0, np.quantile(hold, [0.025, 0.975])
+
+
+def test_the_hop_to_the_hold_moves_only_what_it_names_and_skips_a_model_without_a_hold(tmp_path):
+    """``moved_start`` moves the named physics values and nothing else; ``hop_to_the_hold``
+    returns the fit it was given, without a fit, when the model holds no gap."""
+    import torsionfit
+    from torsionfit.report import FitOptions, prepare_fit
+    from torsionfit.report._pipeline import hop_to_the_hold, moved_start
+
+    bench = _friction_bench(tmp_path, 60.0).campaign
+    with torsionfit.float64():
+        _, _, problem = prepare_fit(bench, FitOptions(effects={"gap_hold": True}))
+        u = np.concatenate([np.asarray(problem.prior_mean, float), np.zeros(problem.dim - problem.n_nonlinear)])
+        start = moved_start(problem, u, {"friction_torque": 2.5, "gap_hold_torque": 30.0})
+        values = problem.physics_values(start[:problem.n_nonlinear])
+        assert float(values["friction_torque"]) == pytest.approx(2.5) and float(values["gap_hold_torque"]) == pytest.approx(30.0)
+        assert np.count_nonzero(start != u) == 2
+        with pytest.raises(ValueError, match="no parameter gap_hold_torque_Nm"):
+            moved_start(problem, u, {"gap_hold_torque_Nm": 30.0})
+        campaign, _, free = prepare_fit(bench, FitOptions())
+        sentinel = object()  # no hold: returned as it is, nothing read from it
+        assert hop_to_the_hold(campaign, free, sentinel, FitOptions(), seed=0) is sentinel
+

@@ -70,6 +70,19 @@ def first_look_loop(campaign: Campaign) -> tuple[float, float] | None:
     return play, 0.5 * width
 
 
+def cycle_friction_readings_Nm(campaign: Campaign) -> tuple[float, float] | None:
+    """(smallest, largest) cycles' :func:`cycle_friction_Nm`, medians over the hysteresis runs
+    (N·m), or None when no run has cycles to read. On a file with play ramps and stiffness
+    ramps the two differ by the friction the load adds and what a held gap shows."""
+    readings = [(cycle_friction_Nm(c.smallest), cycle_friction_Nm(c.largest))
+                for c in grouped_cycles(campaign.hysteresis_runs)]
+    readings = [r for r in readings if all(math.isfinite(x) and x > 0 for x in r)]
+    if not readings:
+        return None
+    small, large = np.median(np.array(readings), axis=0)
+    return float(small), float(large)
+
+
 def first_look_ramp_time_s(campaign: Campaign) -> float | None:
     """Median duration (s) of the hysteresis runs' monotone torque ramps (between reversals,
     as the fit splits them), or None without hysteresis runs."""
