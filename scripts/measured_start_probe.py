@@ -59,7 +59,7 @@ def probe(unit: str, move: dict | None = None, effects: dict | None = None) -> d
     from torsionfit.fit._prior import cycle_friction_readings_Nm
     from torsionfit.io import load_campaign
     from torsionfit.report import prepare_fit
-    from torsionfit.report._pipeline import _nested_starts, moved_start
+    from torsionfit.report._pipeline import _nested_starts, hold_mode_values, moved_start
 
     folder = Path(tempfile.mkdtemp())
     path = mv._data_path(unit)
@@ -69,7 +69,7 @@ def probe(unit: str, move: dict | None = None, effects: dict | None = None) -> d
     options = mv.fit_options(args)
     small, large = cycle_friction_readings_Nm(train)
     if move is None:
-        move = {"friction_torque": small, "gap_hold_torque": max(large - small, small)}
+        move = hold_mode_values(small, large)
     with torsionfit.float64():
         campaign, _, problem = prepare_fit(train, options)
         names = [r.name for r in campaign.runs]

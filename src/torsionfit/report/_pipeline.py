@@ -234,6 +234,12 @@ def moved_start(problem, u, values: dict) -> np.ndarray:
     return start
 
 
+def hold_mode_values(small_Nm: float, large_Nm: float) -> dict:
+    """The hold mode's start from the smallest and largest cycles' readings (N·m): the friction
+    level at the small cycles' reading, the hold at what the large cycles add to it."""
+    return {"friction_torque": small_Nm, "gap_hold_torque": max(large_Nm - small_Nm, small_Nm)}
+
+
 def hop_to_the_hold(campaign: Campaign, problem, map_result, options: FitOptions, seed: int):
     """``map_result``, or the optimum reached from it with the friction level moved to the
     smallest cycles' reading and the gap's hold to what the largest cycles add to it
@@ -247,8 +253,7 @@ def hop_to_the_hold(campaign: Campaign, problem, map_result, options: FitOptions
     readings = cycle_friction_readings_Nm(campaign)
     if readings is None or not {"friction_torque", "gap_hold_torque"} <= {p.name for p in problem.physics}:
         return map_result
-    small, large = readings
-    start = moved_start(problem, map_result.u, {"friction_torque": small, "gap_hold_torque": max(large - small, small)})
+    start = moved_start(problem, map_result.u, hold_mode_values(*readings))
     hopped = fit_map(problem, list(names), n_starts=0, seed=seed, max_steps=options.map_steps,
                      polish_steps=options.map_steps, warm_starts=start[None, :])
     log.info("hop to the hold: log posterior %.1f from the MAP's %.1f", hopped.log_density, map_result.log_density)
