@@ -29,11 +29,12 @@ import measured_validation as mv  # noqa: E402  (the validation's model, options
 
 #: the preloaded units: play ramps far narrower in torque than the large cycles
 DEFAULT_UNITS = [f"split-pccf-preload{p}-pos{q}" for p in (2, 3) for q in (1, 5, 6)]
-SHOWN = ("friction_torque", "friction_load_coefficient", "friction_load_lag_time", "breakaway_spread", "gap_hold_torque")
+SHOWN = ("friction_torque", "friction_load_coefficient", "friction_load_lag_time", "friction_load_memory", "breakaway_spread",
+         "gap_hold_torque")
 #: the default move: the friction level to the play ramps' reading, the hold to what the largest cycles add
 READINGS_MOVE = "the friction level at the play ramps' reading and the hold at what the largest cycles add"
 SYMBOLS = {"friction_torque": "T_f", "friction_load_coefficient": "μ", "friction_load_lag_time": "T_L",
-           "breakaway_spread": "s", "gap_hold_torque": "T_h"}
+           "friction_load_memory": "m", "breakaway_spread": "s", "gap_hold_torque": "T_h"}
 
 
 def play_ramps(runs, angles) -> dict:
@@ -102,6 +103,7 @@ def table(rows: list[dict], effects: dict, move_text: str) -> str:
              "Readings: half the cycles' width in torque at their mid angle. T_f: the friction elements' median "
              "break-away, μ its growth with the load, "
              + ("T_L the lag of the load it follows (s), " if "friction_load_lag_time" in shown else "")
+             + ("m the share of its peak load it keeps as the torque travels back, " if "friction_load_memory" in shown else "")
              + "s the break-away spread (log-sd), T_h the gap's hold."
              + (" Play ramps: their play (deg) and half-width in torque (N·m), the data's and each optimum's." if ramps else ""),
              "",

@@ -141,6 +141,56 @@ def test_a_lagged_load_lowers_the_level_at_the_peak_and_keeps_it_past_the_revers
         m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"lag": "yes"}}, 20.0)
 
 
+def test_a_remembered_peak_sets_each_cycles_level_by_its_own_amplitude():
+    """``load_dependent_friction = {memory = true}``: the load the level grows with is a peak of
+    |τ| let down by (1 − m)·|Δτ| as the torque travels back, never below |τ|. m → 0 is the
+    instantaneous level; with memory a cycle slides at the level its own peak set, so the mesh
+    torque crosses zero (the gap) at T_f + μ·peak — near zero torque on a small cycle, far out on
+    a large one — where the instantaneous level crosses it at one torque, T_f/(1 − μ), whatever
+    the amplitude. Rate-independent: the same torque path at another speed gives the same level."""
+    p = {"friction_torque": 0.5, "friction_load_coefficient": 0.2}
+    f_now = m.MaxwellSlipFriction(n_elements=1, load_dependent=True)
+    f_mem = m.MaxwellSlipFriction(n_elements=1, load_dependent=True, load_memory=True)
+    names = [p.name for p in f_mem.parameters()]
+    assert names[-1] == "friction_load_memory" and "friction_load_lag_time" not in names
+    assert next(p for p in f_mem.parameters() if p.name == "friction_load_memory").vanishes_at_zero
+    tau = np.concatenate([_triangle([4.0, 4.0, 4.0]), _triangle([40.0, 40.0])[1:]])
+    now = np.asarray(f_now.friction_torque(p, jnp.asarray(tau)))
+    tiny = np.asarray(f_mem.friction_torque({**p, "friction_load_memory": 1e-6}, jnp.asarray(tau)))
+    np.testing.assert_allclose(tiny, now, atol=1e-4)
+    kept = {**p, "friction_load_memory": 0.98}
+    load = np.asarray(f_mem.level_load(kept, jnp.asarray(tau)))
+    assert np.all(load >= np.abs(tau) - 1e-12)
+    small = len(_triangle([4.0, 4.0, 4.0]))
+
+    def crossings(friction, params, part):
+        # applied torque where the mesh torque τ − T_fric changes sign on the way down
+        mesh = tau - np.asarray(friction.friction_torque(params, jnp.asarray(tau)))
+        idx = np.arange(len(tau))[part]
+        falling = np.diff(tau[idx]) < 0
+        sign = np.where((np.diff(np.sign(mesh[idx])) != 0) & falling)[0]
+        return np.abs(tau[idx][sign])
+
+    small_now, large_now = crossings(f_now, p, slice(0, small)), crossings(f_now, p, slice(small, None))
+    small_mem, large_mem = crossings(f_mem, kept, slice(0, small)), crossings(f_mem, kept, slice(small, None))
+    # instantaneous: T_f/(1 − μ) = 0.625 N·m on both
+    np.testing.assert_allclose(np.concatenate([small_now, large_now]), 0.625, atol=0.1)
+    # remembered: ≈ T_f + μ·4 = 1.3 on the small cycles, ≈ T_f + μ·40 = 8.5 on the large
+    assert np.all(np.abs(small_mem - 1.3) < 0.15) and np.all(np.abs(large_mem - 8.5) < 1.0), (small_mem, large_mem)
+    slow = np.repeat(tau, 3)  # the same path at a third of the speed: the same levels
+    np.testing.assert_allclose(np.asarray(f_mem.level_load(kept, jnp.asarray(slow)))[::3], load, atol=1e-12)
+    for method in ("serial", "associative"):
+        np.testing.assert_allclose(np.asarray(f_mem.level_load(kept, jnp.asarray(tau), method=method)), load, atol=1e-12)
+    grad = jax.grad(lambda mem: jnp.sum(f_mem.friction_torque({**p, "friction_load_memory": mem}, jnp.asarray(tau))**2))(0.5)
+    assert np.isfinite(float(grad)) and float(grad) != 0.0
+    model = m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"memory": True}}, 20.0)
+    assert model.friction.load_memory and not model.friction.load_lag
+    with pytest.raises(Exception, match=r"\(not both\)"):
+        m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"memory": True, "lag": True}}, 20.0)
+    with pytest.raises(ValueError, match="not both"):
+        m.DahlFriction(load_dependent=True, load_lag=True, load_memory=True)
+
+
 def _breakaway_span(friction, params, peak):
     """Torque span after the reversal at +peak from the first element's break-away to the
     last's (an element breaks away where its mesh share starts to move)."""

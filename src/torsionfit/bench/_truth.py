@@ -46,6 +46,7 @@ ACCEPTED: dict[str, tuple[str, ...]] = {
     "compliance_asymmetry": ("",),
     "breakaway_spread": ("",),
     "friction_load_coefficient": ("",),
+    "friction_load_memory": ("",),
     "series_share": ("",),
     "gap_residual_share": ("",),
     "preload_stiffening": ("",),

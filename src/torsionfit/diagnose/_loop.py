@@ -10,7 +10,7 @@ The pointwise terms are the AR(1) one-step conditional densities of each sample.
 """
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.stats import median_abs_deviation
@@ -170,6 +170,7 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
             say(f"  {effect.name} rejected: ΔELPD {c.delta:.1f} ± {c.se:.1f} ({c.criterion})")
         if accepted is None:
             break
+        accepted = _against_rivals(campaign, options, seed, effects, accepted, rejected, say)
         say(f"  {accepted.effect} added: ΔELPD {accepted.delta_elpd:.1f} ± {accepted.delta_elpd_se:.1f} "
             f"({accepted.comparison.criterion}), "
             f"RMSE {accepted.before.rmse_arcsec:.3g}″ → {accepted.after.rmse_arcsec:.3g}″")
@@ -186,6 +187,32 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
     return Diagnosis(base=base, final=current, steps=steps, rejected=rejected, signatures=history,
                      unexplained=bool(findings), unexplained_description=description, leftovers=findings,
                      notes=notes, noise_arcsec=noise)
+
+
+def _against_rivals(campaign: Campaign, options: DiagnoseOptions, seed: int, effects: dict, accepted: Step,
+                    rejected: list, say) -> Step:
+    """The accepted step, or a rival extension of the same component refitted in its place when
+    that earns its keep over it (ΔELPD above the thresholds a step must pass); a rival that does
+    not is recorded as rejected."""
+    by_name = {e.name: e for e in options.catalog}
+    ctx = accepted.before.context
+    for name in by_name[accepted.effect].rivals if accepted.effect in by_name else ():
+        rival = by_name.get(name)
+        if rival is None:
+            continue
+        evidence = replace(accepted.evidence, effect=name, description=(
+            f"refitted in place of {accepted.effect}, whose signature this is: {accepted.evidence.description}"))
+        say(f"trying {name} in place of {accepted.effect}")
+        trial = fit_with(campaign, rival.extend(effects, evidence, ctx), options, seed, warm=accepted.after,
+                         start_values=rival.rival_start_values(ctx))
+        c = compare(accepted.after.score, trial.score)
+        if c.delta > options.min_delta_elpd and c.delta > options.se_factor * c.se:
+            say(f"  {name} replaces {accepted.effect}: ΔELPD {c.delta:.1f} ± {c.se:.1f} ({c.criterion})")
+            rejected.append(replace(accepted, kept=False))
+            accepted = Step(name, evidence, accepted.before, trial, compare(accepted.before.score, trial.score), kept=True)
+        else:
+            rejected.append(Step(name, evidence, accepted.after, trial, c, kept=False))
+    return accepted
 
 
 def judge_leftovers(leftovers: list, rmse_arcsec: float, noise_arcsec: float, options: DiagnoseOptions):

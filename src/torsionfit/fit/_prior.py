@@ -113,6 +113,9 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "dahl_torque": (log(0.02 * rated), 2.0),
         "breakaway_spread": (log(0.5), 1.0),  # log-sd of the elements' break-away levels
         "friction_load_coefficient": (log(0.1 / 0.9), 1.5),  # logit-normal around μ = 0.1
+        # logit-normal around m = 0.5, wide: three sds down (a nested fit's start) is m ≈ 0.002,
+        # the instantaneous load; m → 1 (a peak kept over the whole unloading) within 1.5 sd
+        "friction_load_memory": (0.0, 2.0),
         "gap": (log(0.1 * twist0), 2.5),
         "gap_torque": (log(0.02 * rated), 2.0),
         "gap_closure": (log(0.9 / 0.1), 1.5),  # logit-normal around q = 0.9: mostly closed by friction

@@ -125,25 +125,27 @@ DEFAULT_FRICTION_ELEMENTS = 6
 
 def _friction(effects: dict):
     """Dahl friction, or Maxwell-slip elements (``distributed_friction``); either with a
-    level growing with the load (``load_dependent_friction``)."""
+    level growing with the load (``load_dependent_friction``: the instantaneous load, a lagged
+    one, or a remembered peak)."""
     load = effects.get("load_dependent_friction", False)
-    lag, growth = False, "proportional"
-    if (isinstance(load, dict) and set(load) <= {"lag", "growth"} and isinstance(load.get("lag", False), bool)
-            and load.get("growth", growth) in LOAD_GROWTH):
-        load, lag, growth = True, load.get("lag", False), load.get("growth", growth)
+    lag, memory, growth = False, False, "proportional"
+    if (isinstance(load, dict) and set(load) <= {"lag", "memory", "growth"}
+            and isinstance(load.get("lag", False), bool) and isinstance(load.get("memory", False), bool)
+            and not (load.get("lag", False) and load.get("memory", False)) and load.get("growth", growth) in LOAD_GROWTH):
+        load, lag, memory, growth = True, load.get("lag", False), load.get("memory", False), load.get("growth", growth)
     if not isinstance(load, bool):
-        raise InputError(f"[effects].load_dependent_friction: expected true, false or a table {{lag = true, growth = "
-                         f"\"common\"}} (growth one of {', '.join(LOAD_GROWTH)}), got {load!r}")
+        raise InputError(f"[effects].load_dependent_friction: expected true, false or a table {{lag = true}} or "
+                         f"{{memory = true}} (not both), with growth = \"common\" (growth one of {', '.join(LOAD_GROWTH)}), got {load!r}")
     dist = effects.get("distributed_friction", False)
     if dist is False or dist is None:
         if growth != "proportional":
             raise InputError(f"[effects].load_dependent_friction: growth = {growth!r} needs distributed_friction "
                              f"(one Dahl element has no spread of levels to keep)")
-        return DahlFriction(load_dependent=load, load_lag=lag)
+        return DahlFriction(load_dependent=load, load_lag=lag, load_memory=memory)
     n = dist.get("elements", DEFAULT_FRICTION_ELEMENTS) if isinstance(dist, dict) else DEFAULT_FRICTION_ELEMENTS if dist is True else dist
     if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= 64:
         raise InputError(f"[effects].distributed_friction: expected true or {{elements = N}} with 1 ≤ N ≤ 64, got {dist!r}")
-    return MaxwellSlipFriction(n_elements=n, load_dependent=load, load_lag=lag, load_growth=growth)
+    return MaxwellSlipFriction(n_elements=n, load_dependent=load, load_lag=lag, load_memory=memory, load_growth=growth)
 
 
 def _temperature(value):

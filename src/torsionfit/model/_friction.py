@@ -11,7 +11,10 @@ the mesh carries ``τ_m = τ − T_fric``. Two families:
 Either can make its level grow with the transmitted torque (``load_dependent_friction``):
 gear friction scales with the normal load of the mesh, so after a reversal at a high peak the
 twist stays flat over a much wider torque span than after a small one, and the loading and
-unloading branches are not parallel.
+unloading branches are not parallel. The load the level grows with is the instantaneous
+|τ|, or |τ| through a first-order lag in time (``lag``), or a peak of |τ| the level remembers
+while the torque travels back (``memory``): rate-independent amplitude memory, so the small
+cycles of a play ramp slide at a level their own amplitude sets.
 """
 
 import abc
@@ -23,13 +26,17 @@ import numpy as np
 
 from ._parameter import Parameter
 from ._play import play_scan
-from ._recurrence import ScanMethod, affine_scan, first_order_lag
+from ._recurrence import ScanMethod, affine_scan, first_order_lag, max_plus_scan
 
 _LOAD = Parameter("friction_load_coefficient", "unit_interval", "1",
                   "μ: friction level grows by μ·|τ| with the transmitted torque")
 _LOAD_LAG = Parameter("friction_load_lag_time", "positive", "s",
                       "time constant T_L of the load the friction level follows (|τ| through a first-order lag)",
                       vanishes_at_zero=True)
+_LOAD_MEMORY = Parameter("friction_load_memory", "unit_interval", "1",
+                         "m: after a peak the load the level grows with falls by (1 − m)·|Δτ| per N·m the torque "
+                         "travels, never below |τ| (0: the instantaneous |τ|; 1: the largest |τ| so far)",
+                         vanishes_at_zero=True)
 
 
 #: how a growing load raises Maxwell-slip elements' levels (:class:`MaxwellSlipFriction`)
@@ -42,6 +49,12 @@ class AbstractFriction(eqx.Module):
     load_dependent: eqx.AbstractVar[bool]
     #: the level follows the load through a first-order lag in time (``load_dependent`` only)
     load_lag: eqx.AbstractVar[bool]
+    #: the level remembers the last peak load while the torque travels back (``load_dependent`` only)
+    load_memory: eqx.AbstractVar[bool]
+
+    def _check_load_options(self):
+        if self.load_lag and self.load_memory:
+            raise ValueError("a friction level follows the load through a lag or remembers its peak, not both")
 
     @abc.abstractmethod
     def parameters(self) -> tuple[Parameter, ...]: ...
@@ -55,13 +68,19 @@ class AbstractFriction(eqx.Module):
     def _load_parameters(self) -> tuple[Parameter, ...]:
         if not self.load_dependent:
             return ()
-        return (_LOAD, _LOAD_LAG) if self.load_lag else (_LOAD,)
+        return (_LOAD,) + ((_LOAD_LAG,) if self.load_lag else ()) + ((_LOAD_MEMORY,) if self.load_memory else ())
 
     def level_load(self, params, torque_Nm, time_s=None, method: ScanMethod = "auto"):
         """The load |τ| (N·m) the friction level grows with, per sample: the transmitted torque's
         magnitude, or with ``load_lag`` that magnitude through a first-order lag
-        ``T_L·dL/dt = |τ| − L`` (needs ``time_s``; starting at |τ| at the first sample)."""
+        ``T_L·dL/dt = |τ| − L`` (needs ``time_s``; starting at |τ| at the first sample), or with
+        ``load_memory`` the peak it remembers, ``L[n] = max(|τ[n]|, L[n−1] − (1 − m)·|Δτ[n]|)``
+        (starting at |τ| at the first sample: the history before it is unknown)."""
         load = jnp.abs(jnp.asarray(torque_Nm))
+        if self.load_dependent and self.load_memory:
+            # the peak falls with the torque's travel, not with time: the memory is rate-independent
+            fall = (1.0 - params["friction_load_memory"]) * jnp.abs(jnp.diff(jnp.asarray(torque_Nm)))
+            return jnp.concatenate([load[:1], max_plus_scan(load[1:], -fall, load[0], method)])
         if not (self.load_dependent and self.load_lag):
             return load
         if time_s is None:
@@ -85,6 +104,10 @@ class DahlFriction(AbstractFriction):
     initial_state: float = eqx.field(static=True, default=0.0)
     load_dependent: bool = eqx.field(static=True, default=False)
     load_lag: bool = eqx.field(static=True, default=False)
+    load_memory: bool = eqx.field(static=True, default=False)
+
+    def __check_init__(self):
+        self._check_load_options()
 
     def parameters(self):
         out = (
@@ -132,6 +155,7 @@ class MaxwellSlipFriction(AbstractFriction):
     initial_state: float = eqx.field(static=True, default=0.0)
     load_dependent: bool = eqx.field(static=True, default=False)
     load_lag: bool = eqx.field(static=True, default=False)
+    load_memory: bool = eqx.field(static=True, default=False)
     #: how the load raises the elements' levels: "proportional" (each by its share) or "common"
     load_growth: str = eqx.field(static=True, default="proportional")
 
@@ -140,6 +164,7 @@ class MaxwellSlipFriction(AbstractFriction):
             raise ValueError(f"n_elements must be ≥ 1, got {self.n_elements}")
         if self.load_growth not in LOAD_GROWTH:
             raise ValueError(f"load_growth must be one of {LOAD_GROWTH}, got {self.load_growth!r}")
+        self._check_load_options()
 
     def parameters(self):
         out = (Parameter("friction_torque", "positive", "N·m", "sliding friction level T_f (mean break-away)"),)
