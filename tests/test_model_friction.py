@@ -185,10 +185,17 @@ def test_a_remembered_peak_sets_each_cycles_level_by_its_own_amplitude():
     assert np.isfinite(float(grad)) and float(grad) != 0.0
     model = m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"memory": True}}, 20.0)
     assert model.friction.load_memory and not model.friction.load_lag
-    with pytest.raises(Exception, match=r"\(not both\)"):
-        m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"memory": True, "lag": True}}, 20.0)
-    with pytest.raises(ValueError, match="not both"):
-        m.DahlFriction(load_dependent=True, load_lag=True, load_memory=True)
+    # with a lag as well, the lagged load's peaks are remembered: m → 0 is the lag alone
+    both = m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"memory": True, "lag": True}}, 20.0).friction
+    assert both.load_memory and both.load_lag
+    t = np.arange(len(tau)) * 0.025
+    lag_only = m.MaxwellSlipFriction(n_elements=1, load_dependent=True, load_lag=True)
+    lagged = {**p, "friction_load_lag_time": 2.0}
+    np.testing.assert_allclose(
+        np.asarray(both.level_load({**lagged, "friction_load_memory": 1e-9}, jnp.asarray(tau), jnp.asarray(t))),
+        np.asarray(lag_only.level_load(lagged, jnp.asarray(tau), jnp.asarray(t))), atol=1e-6)
+    with pytest.raises(Exception, match=r"load_dependent_friction: expected true, false or a table"):
+        m.model_with_effects(("hysteresis",), {"load_dependent_friction": {"memory": "yes"}}, 20.0)
 
 
 def _breakaway_span(friction, params, peak):

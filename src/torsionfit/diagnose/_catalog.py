@@ -433,7 +433,7 @@ class FrictionLoadMemory(Effect):
     rivals = ("friction_load_lag",)
     signature_text = ("after a large cycle the loop stays flat longer and crosses the gap further from zero than after a "
                       "small one, at any loading rate: the friction level remembers the cycle's peak load")
-    extension_text = "the friction level grows with the last peak of |τ|, let down by (1 − m)·|Δτ| (μ·L)"
+    extension_text = "the friction level grows with the last peak of |τ|, let down by (1 − m) per N·m the load travels back (μ·L)"
 
     def applicable(self, ctx):
         fr = ctx.map_result.problem.model.friction
@@ -453,7 +453,7 @@ class FrictionLoadMemory(Effect):
                 ctx, self.name, alt, {"friction_load_memory": SIGNATURE_MEMORY},
                 lambda pred, alt_pred, alt_jac: alt_jac["friction_load_memory"][:, None],
                 "residual along the fitted model's response to a friction level that remembers the last peak load "
-                "(the peak let down by (1 − m)·|Δτ|, m → 0: μ·m times the torque travelled back since the peak)")
+                "(the peak let down by (1 − m)·|Δ|τ||, m → 0: μ·m times the torque travelled back since the peak)")
         # No load dependence yet: the score of μ at μ = 0 with the level growing with a remembered
         # peak, for m at fixed shares. A remembered peak keeps the level nearly constant over a
         # cycle, at the cycle's own amplitude: the instantaneous level's direction (|τ|) misses it
@@ -467,7 +467,7 @@ class FrictionLoadMemory(Effect):
                 ctx, self.name, alt, {"friction_load_coefficient": 0.0, "friction_load_memory": memory},
                 lambda pred, alt_pred, alt_jac: alt_jac["friction_load_coefficient"][:, None],
                 f"residual along the fitted model's derivative with respect to a friction level μ·L growing with the "
-                f"last peak load L remembered with share m = {memory:g} (let down by {1 - memory:g}·|Δτ|): each cycle "
+                f"last peak load L remembered with share m = {memory:g} (let down by {1 - memory:g}·|Δ|τ||): each cycle "
                 "slides at the level its own peak set", {"memory": memory})
             grows = bool(ev.details.get("coefficients")) and ev.details["coefficients"][0] > 0
             if grows and (best is None or ev.log10_p < best.log10_p):

@@ -131,11 +131,11 @@ def _friction(effects: dict):
     lag, memory, growth = False, False, "proportional"
     if (isinstance(load, dict) and set(load) <= {"lag", "memory", "growth"}
             and isinstance(load.get("lag", False), bool) and isinstance(load.get("memory", False), bool)
-            and not (load.get("lag", False) and load.get("memory", False)) and load.get("growth", growth) in LOAD_GROWTH):
+            and load.get("growth", growth) in LOAD_GROWTH):
         load, lag, memory, growth = True, load.get("lag", False), load.get("memory", False), load.get("growth", growth)
     if not isinstance(load, bool):
         raise InputError(f"[effects].load_dependent_friction: expected true, false or a table {{lag = true}} or "
-                         f"{{memory = true}} (not both), with growth = \"common\" (growth one of {', '.join(LOAD_GROWTH)}), got {load!r}")
+                         f"{{memory = true}} (or both), with growth = \"common\" (growth one of {', '.join(LOAD_GROWTH)}), got {load!r}")
     dist = effects.get("distributed_friction", False)
     if dist is False or dist is None:
         if growth != "proportional":

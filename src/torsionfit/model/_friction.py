@@ -14,7 +14,8 @@ twist stays flat over a much wider torque span than after a small one, and the l
 unloading branches are not parallel. The load the level grows with is the instantaneous
 |τ|, or |τ| through a first-order lag in time (``lag``), or a peak of |τ| the level remembers
 while the torque travels back (``memory``): rate-independent amplitude memory, so the small
-cycles of a play ramp slide at a level their own amplitude sets.
+cycles of a play ramp slide at a level their own amplitude sets; or both (the lagged load's
+peaks remembered).
 """
 
 import abc
@@ -34,8 +35,8 @@ _LOAD_LAG = Parameter("friction_load_lag_time", "positive", "s",
                       "time constant T_L of the load the friction level follows (|τ| through a first-order lag)",
                       vanishes_at_zero=True)
 _LOAD_MEMORY = Parameter("friction_load_memory", "unit_interval", "1",
-                         "m: after a peak the load the level grows with falls by (1 − m)·|Δτ| per N·m the torque "
-                         "travels, never below |τ| (0: the instantaneous |τ|; 1: the largest |τ| so far)",
+                         "m: after a peak the load the level grows with falls by (1 − m) per N·m the load travels "
+                         "back, never below it (0: the load itself; 1: its largest value so far)",
                          vanishes_at_zero=True)
 
 
@@ -52,10 +53,6 @@ class AbstractFriction(eqx.Module):
     #: the level remembers the last peak load while the torque travels back (``load_dependent`` only)
     load_memory: eqx.AbstractVar[bool]
 
-    def _check_load_options(self):
-        if self.load_lag and self.load_memory:
-            raise ValueError("a friction level follows the load through a lag or remembers its peak, not both")
-
     @abc.abstractmethod
     def parameters(self) -> tuple[Parameter, ...]: ...
 
@@ -71,21 +68,25 @@ class AbstractFriction(eqx.Module):
         return (_LOAD,) + ((_LOAD_LAG,) if self.load_lag else ()) + ((_LOAD_MEMORY,) if self.load_memory else ())
 
     def level_load(self, params, torque_Nm, time_s=None, method: ScanMethod = "auto"):
-        """The load |τ| (N·m) the friction level grows with, per sample: the transmitted torque's
-        magnitude, or with ``load_lag`` that magnitude through a first-order lag
-        ``T_L·dL/dt = |τ| − L`` (needs ``time_s``; starting at |τ| at the first sample), or with
-        ``load_memory`` the peak it remembers, ``L[n] = max(|τ[n]|, L[n−1] − (1 − m)·|Δτ[n]|)``
-        (starting at |τ| at the first sample: the history before it is unknown)."""
+        """The load (N·m) the friction level grows with, per sample: the transmitted torque's
+        magnitude |τ|; with ``load_lag`` that magnitude through a first-order lag
+        ``T_L·dL/dt = |τ| − L`` (needs ``time_s``; starting at |τ| at the first sample); with
+        ``load_memory`` the peak of that load ℓ remembered while it falls,
+        ``L[n] = max(ℓ[n], L[n−1] − (1 − m)·|Δℓ[n]|)`` (starting at ℓ at the first sample: the
+        history before it is unknown). With both, the lagged load's peaks are remembered; m → 0
+        is the lag alone, T_L → 0 the memory alone."""
         load = jnp.abs(jnp.asarray(torque_Nm))
-        if self.load_dependent and self.load_memory:
-            # the peak falls with the torque's travel, not with time: the memory is rate-independent
-            fall = (1.0 - params["friction_load_memory"]) * jnp.abs(jnp.diff(jnp.asarray(torque_Nm)))
-            return jnp.concatenate([load[:1], max_plus_scan(load[1:], -fall, load[0], method)])
-        if not (self.load_dependent and self.load_lag):
+        if not self.load_dependent:
             return load
-        if time_s is None:
-            raise ValueError("a friction level following the load with a lag needs the samples' times")
-        return first_order_lag(time_s, load, params["friction_load_lag_time"], method)
+        if self.load_lag:
+            if time_s is None:
+                raise ValueError("a friction level following the load with a lag needs the samples' times")
+            load = first_order_lag(time_s, load, params["friction_load_lag_time"], method)
+        if self.load_memory:
+            # the peak falls with the load's own travel, not with time: the memory is rate-independent
+            fall = (1.0 - params["friction_load_memory"]) * jnp.abs(jnp.diff(load))
+            load = jnp.concatenate([load[:1], max_plus_scan(load[1:], -fall, load[0], method)])
+        return load
 
     def sliding_level(self, params, torque_Nm):
         """Friction torque (N·m) while sliding steadily at torque ``torque_Nm`` (TE runs):
@@ -105,9 +106,6 @@ class DahlFriction(AbstractFriction):
     load_dependent: bool = eqx.field(static=True, default=False)
     load_lag: bool = eqx.field(static=True, default=False)
     load_memory: bool = eqx.field(static=True, default=False)
-
-    def __check_init__(self):
-        self._check_load_options()
 
     def parameters(self):
         out = (
@@ -164,7 +162,6 @@ class MaxwellSlipFriction(AbstractFriction):
             raise ValueError(f"n_elements must be ≥ 1, got {self.n_elements}")
         if self.load_growth not in LOAD_GROWTH:
             raise ValueError(f"load_growth must be one of {LOAD_GROWTH}, got {self.load_growth!r}")
-        self._check_load_options()
 
     def parameters(self):
         out = (Parameter("friction_torque", "positive", "N·m", "sliding friction level T_f (mean break-away)"),)
