@@ -461,21 +461,13 @@ class FrictionLoadMemory(Effect):
         # ΔELPD 14 ± 9 and nothing was added), so waiting for that step first would never reach
         # the memory. The strongest m is kept, its p-value Bonferroni-corrected for the search;
         # one-sided: friction cannot fall with the load.
-        best = None
-        for memory in MEMORY_SHARES:
-            ev = _score_test(
-                ctx, self.name, alt, {"friction_load_coefficient": 0.0, "friction_load_memory": memory},
-                lambda pred, alt_pred, alt_jac: alt_jac["friction_load_coefficient"][:, None],
-                f"residual along the fitted model's derivative with respect to a friction level μ·L growing with the "
-                f"last peak load L remembered with share m = {memory:g} (let down by {1 - memory:g}·|Δ|τ||): each cycle "
-                "slides at the level its own peak set", {"memory": memory})
-            grows = bool(ev.details.get("coefficients")) and ev.details["coefficients"][0] > 0
-            if grows and (best is None or ev.log10_p < best.log10_p):
-                best = ev
-        if best is None:
-            return Evidence(self.name, 0.0, 0, 0.0, 0.0, "residual asks for a friction level falling with the "
-                            "remembered load, not growing: no memory explains it")
-        return replace(best, log10_p=min(0.0, best.log10_p + float(np.log10(len(MEMORY_SHARES)))))
+        return _strongest_positive(self.name, [_score_test(
+            ctx, self.name, alt, {"friction_load_coefficient": 0.0, "friction_load_memory": memory},
+            lambda pred, alt_pred, alt_jac: alt_jac["friction_load_coefficient"][:, None],
+            f"residual along the fitted model's derivative with respect to a friction level μ·L growing with the "
+            f"last peak load L remembered with share m = {memory:g} (let down by {1 - memory:g}·|Δ|τ||): each cycle "
+            "slides at the level its own peak set", {"memory": memory}) for memory in MEMORY_SHARES],
+            "residual asks for a friction level falling with the remembered load, not growing: no memory explains it")
 
     def start_values(self, evidence):
         # from the base model the refit starts at the memory the signature found, not at m ≈ 0
@@ -492,6 +484,17 @@ def _load_level_with(effects: dict, option: str) -> dict:
     """``effects`` with ``load_dependent_friction`` switched on and ``option`` (lag, memory) set."""
     level = effects.get("load_dependent_friction", True)
     return {**effects, "load_dependent_friction": {**(level if isinstance(level, dict) else {}), option: True}}
+
+
+def _strongest_positive(name: str, searched: list[Evidence], none_text: str) -> Evidence:
+    """Of a search's evidence, the strongest whose first coefficient is positive (a one-sided
+    effect), its p-value Bonferroni-corrected for the ``len(searched)`` tried; no evidence
+    (``none_text``) when none is."""
+    positive = [ev for ev in searched if ev.details.get("coefficients") and ev.details["coefficients"][0] > 0]
+    if not positive:
+        return Evidence(name, 0.0, 0, 0.0, 0.0, none_text)
+    best = min(positive, key=lambda ev: ev.log10_p)
+    return replace(best, log10_p=min(0.0, best.log10_p + float(np.log10(len(searched)))))
 
 
 def _lag_score_test(ctx: FitContext, name: str, alt, parameter: str, description: str) -> Evidence:
@@ -595,23 +598,18 @@ class GapHold(Effect):
         values = problem.physics_values(jnp.asarray(ctx.map_result.u))
         start = np.asarray(values["friction_start"], float) if "friction_start" in values else np.zeros(problem.model.n_hysteresis)
         peak = max(float(np.max(np.abs(r.mesh_torque_Nm))) for r in ctx.hysteresis)
-        best = None
+        evidence = []
         for share in GAP_HOLD_SHARES:
             hold = share * peak
-            ev = _score_test(
+            evidence.append(_score_test(
                 ctx, self.name, alt, {"gap_hold_torque": hold, "gap_start": start},
                 lambda pred, alt_pred, alt_jac: np.stack([alt_pred - pred, alt_jac["gap_hold_torque"] * hold], axis=1),
                 f"residual along the change from the smooth gap to one held by its own friction up to ±{hold:.3g} N·m "
                 "of mesh torque and the held gap's derivative in its hold torque: the gap crossed later along each "
                 "branch, the loaded flanks not moved", {"hold_torque_Nm": hold},
-                nuisance=lambda run: np.stack([_t(run, ctx) ** 3, _t(run, ctx) ** 5], axis=1))
-            later = bool(ev.details.get("coefficients")) and ev.details["coefficients"][0] > 0
-            if later and (best is None or ev.log10_p < best.log10_p):
-                best = ev
-        if best is None:
-            return Evidence(self.name, 0.0, 0, 0.0, 0.0, "residual moves the gap crossing earlier, not later, than a "
-                            "smooth gap: no hold torque explains it")
-        return replace(best, log10_p=min(0.0, best.log10_p + float(np.log10(len(GAP_HOLD_SHARES)))))
+                nuisance=lambda run: np.stack([_t(run, ctx) ** 3, _t(run, ctx) ** 5], axis=1)))
+        return _strongest_positive(self.name, evidence, "residual moves the gap crossing earlier, not later, than a "
+                                   "smooth gap: no hold torque explains it")
 
     def start_values(self, evidence):
         # the nested start holds the gap at T_h ≈ 0, where the relay is the smooth gap and the
