@@ -41,13 +41,12 @@ def play_ramps(runs, angles) -> dict:
     """The smallest cycles' play (deg) and half-width in torque at their mid angle (N·m) of
     ``angles`` (rad, one per run; the data's or a model's), medians over the runs."""
     from torsionfit.fit._prior import cycle_friction_Nm
-    from torsionfit.metrics._hysteresis import cycle_classes
+    from torsionfit.metrics._hysteresis import cycle_classes, play_of
 
     plays, widths = [], []
     for run, angle in zip(runs, angles):
         small = cycle_classes(run.time_s, run.torque_Nm, np.asarray(angle), name=run.name).smallest
-        i0 = int(np.argmin(np.abs(small.torque_Nm)))
-        plays.append(math.degrees(small.upper_rad[i0] - small.lower_rad[i0]))
+        plays.append(math.degrees(play_of(small)))
         widths.append(cycle_friction_Nm(small))
     return {"play_deg": float(np.median(plays)), "half_width_Nm": float(np.median(widths))}
 
@@ -66,7 +65,9 @@ def probe(unit: str, move: dict | None = None, effects: dict | None = None) -> d
     path = mv._data_path(unit)
     ramps = mv.test_numbers(path)
     train = load_campaign(mv.manifest(unit, [r for r in ramps if r != max(ramps)], folder))
-    args = mv.parse_args([] if effects is None else ["--effects", json.dumps(effects)])
+    if effects is None:  # the validation's model of this unit's design
+        effects = mv.effects_for(unit, mv.parse_args([]))
+    args = mv.parse_args(["--effects", json.dumps(effects)])
     options = mv.fit_options(args)
     small, large = cycle_friction_readings_Nm(train)
     if move is None:
@@ -88,7 +89,7 @@ def probe(unit: str, move: dict | None = None, effects: dict | None = None) -> d
                     **{k: float(np.ravel(values[k])[0]) for k in SHOWN if k in values},
                     "play_ramps": play_ramps(runs, totals)}
 
-        return {"unit": unit, "play_ramps_Nm": small, "largest_cycles_Nm": large, "move": move,
+        return {"unit": unit, "effects": effects, "play_ramps_Nm": small, "largest_cycles_Nm": large, "move": move,
                 "data_play_ramps": play_ramps(runs, [r.angle_rad for r in runs]),
                 "validation_start": summary(fitted), "moved_start": summary(moved)}
 
@@ -99,7 +100,7 @@ def table(rows: list[dict], effects: dict, move_text: str) -> str:
     ramps = any("data_play_ramps" in r for r in rows)
     symbols = " / ".join(SYMBOLS[k] for k in shown)
     lines = [f"Friction level: the validation's MAP against the MAP from a start with {move_text} ({mv.SOURCE}; "
-             f"model: base + {json.dumps(effects)}, the validation's options, the file without its last large ramp). "
+             f"model: {mv.model_text(rows, effects)}, the validation's options, the file without its last large ramp). "
              "Readings: half the cycles' width in torque at their mid angle. T_f: the friction elements' median "
              "break-away, μ its growth with the load, "
              + ("T_L the lag of the load it follows (s), " if "friction_load_lag_time" in shown else "")
@@ -143,15 +144,15 @@ def main(argv=None) -> int:
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--move", nargs="*", type=_move, metavar="NAME=VALUE",
                         help="the moved start's physics values in SI units (default: the readings' move)")
-    parser.add_argument("--effects", type=json.loads, default=mv.EFFECTS,
-                        help=f"model effects as JSON (default: the validation's, {json.dumps(mv.EFFECTS)})")
+    parser.add_argument("--effects", type=json.loads, default=None,
+                        help="model effects as JSON (default: the validation's model of each unit's design)")
     parser.add_argument("--table-only", action="store_true", help="rewrite the table from the folder's start-probe.json")
     args = parser.parse_args(argv)
     move = dict(args.move) if args.move else None
     move_text = ", ".join(f"{k} = {v:g}" for k, v in move.items()) if move else READINGS_MOVE
     if args.table_only:
         doc = json.loads((args.output / "start-probe.json").read_text())
-        text = table(doc["units"], doc.get("effects", mv.EFFECTS), doc.get("move", READINGS_MOVE))
+        text = table(doc["units"], doc.get("effects") or mv.EFFECTS, doc.get("move", READINGS_MOVE))
         (args.output / "start-probe.md").write_text(text)
         print(text)
         return 0
@@ -170,7 +171,7 @@ def main(argv=None) -> int:
     args.output.mkdir(parents=True, exist_ok=True)
     doc = {"source": mv.SOURCE, "effects": args.effects, "move": move_text, "units": rows}
     (args.output / "start-probe.json").write_text(json.dumps(doc, indent=1))
-    text = table(rows, args.effects, move_text)
+    text = table(rows, args.effects or mv.EFFECTS, move_text)
     (args.output / "start-probe.md").write_text(text)
     print(text)
     return 0

@@ -3,10 +3,12 @@
 
 For each file (one run: the small play ramps and the large stiffness ramps together):
 
-1. fit the file **without its last large ramp** (model: base + ``load_dependent_friction``
-   with its level following the load through a first-order lag (``{lag = true}``) +
-   ``distributed_friction`` + power-law ``stiffness_nonlinearity`` + ``asymmetry``, ``--effects``
-   to change;
+1. fit the file **without its last large ramp** (model, :data:`EFFECTS`: base +
+   ``load_dependent_friction`` with its level following the load through a first-order lag
+   (``{lag = true}``) + ``distributed_friction`` + power-law ``stiffness_nonlinearity`` +
+   ``asymmetry`` + ``gap_hold``; the preloaded split-pinwheel design's, :data:`DESIGN_EFFECTS`:
+   the level remembering the peak load in place of the lag, and ``preload_stiffening``;
+   ``--effects`` to fit every unit with one model;
    block means of ``--decimate`` samples; iid noise with a level per cycle class (the play
    ramps, the stiffness ramps: their ratio read at the MAP, ``--no-class-noise`` for one level)
    and the posterior widened for structure the residuals keep, drawn from a split normal along the Laplace approximation's axes
@@ -31,6 +33,8 @@ Per configuration (the three rotor positions averaged like the data's authors) `
 the loading compliance are compared with the authors' numbers, read from the data's README.
 
     .venv/bin/python scripts/measured_validation.py -o docs/measured/validation [--units baseline-pccf-initial-pos1 ...]
+
+``--units`` with ``--append`` re-fits those units and keeps the table's other rows.
 """
 
 import argparse
@@ -63,6 +67,13 @@ ARCSEC = ANGLE_UNITS["arcsec"]
 DEG = ANGLE_UNITS["deg"]
 EFFECTS = {"load_dependent_friction": {"lag": True}, "distributed_friction": True, "stiffness_nonlinearity": "power_law",
            "asymmetry": True, "gap_hold": True}
+#: the model of a design whose physics is declared beyond EFFECTS (the unit name's prefix →
+#: its effects): the split-pinwheel design is preloaded (anti-backlash), so below a lift-off
+#: torque a second, preloaded path stiffens it, and its small play ramps slide at a friction
+#: level their own amplitude sets (the level remembers the peak load)
+DESIGN_EFFECTS = {"split-pccf": {"load_dependent_friction": {"memory": True}, "distributed_friction": True,
+                                 "stiffness_nonlinearity": "power_law", "asymmetry": True, "gap_hold": True,
+                                 "preload_stiffening": True}}
 SOURCE = "REAL measured data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0"
 
 
@@ -114,9 +125,17 @@ def _data_path(unit: str) -> Path:
     return Path(re.search(r'file = "([^"]+)"', (EXAMPLES / f"{unit}.toml").read_text()).group(1).replace("../../../shared/", f"{ROOT.parent}/shared/"))
 
 
-def fit_options(args) -> FitOptions:
-    """The validation's fit: iid noise with the posterior widened for misfit unless ``--ar1``."""
-    return FitOptions(effects=args.effects, sampler=args.sampler, progress=False, decimate=args.decimate,
+def effects_for(unit: str | None, args) -> dict:
+    """The model's effects for ``unit``: ``--effects`` when given, else its design's
+    (:data:`DESIGN_EFFECTS`, by the unit name's prefix) or :data:`EFFECTS`."""
+    if args.effects is not None:
+        return args.effects
+    return next((e for design, e in DESIGN_EFFECTS.items() if unit and unit.startswith(design + "-")), EFFECTS)
+
+
+def fit_options(args, unit: str | None = None) -> FitOptions:
+    """The validation's fit of ``unit``: iid noise with the posterior widened for misfit unless ``--ar1``."""
+    return FitOptions(effects=effects_for(unit, args), sampler=args.sampler, progress=False, decimate=args.decimate,
                       laplace_shape=args.laplace_shape,
                       max_steps=args.max_steps, n_starts=args.starts, misfit_inflation=not args.no_misfit_inflation,
                       hop_to_the_hold=getattr(args, "hop_to_the_hold", False),
@@ -132,7 +151,7 @@ def validate(unit: str, folder: Path, args) -> dict:
     train = load_campaign(manifest(unit, [r for r in ramps if r != last], folder))
     whole = decimate(load_campaign(manifest(unit, None, folder)), args.decimate)
     t0 = time.perf_counter()
-    fit = fit_campaign(train, fit_options(args), seed=args.seed)
+    fit = fit_campaign(train, fit_options(args, unit), seed=args.seed)
     seconds = time.perf_counter() - t0
     problem = fit.problem
     # the product's own check on the fitted file (fit.json): the class metrics read off the
@@ -174,6 +193,7 @@ def validate(unit: str, folder: Path, args) -> dict:
     large_train = (nr >= 100) & ~held
     out = {
         "unit": unit,
+        "effects": effects_for(unit, args),
         "seconds_fit": seconds,
         "rmse_in_sample_arcsec": float(np.sqrt(np.mean((y[~held] - mean[~held]) ** 2)) / ARCSEC),
         "rmse_in_sample_large_arcsec": float(np.sqrt(np.mean((y[large_train] - mean[large_train]) ** 2)) / ARCSEC),
@@ -392,11 +412,29 @@ def posterior_text(sampler: str, laplace_shape: str) -> str:
         if laplace_shape == "split" else "laplace (the Gaussian)"
 
 
+def _design(unit: str) -> str:
+    """A unit's design: its name before the unit state and position (``split-pccf``)."""
+    return "-".join(unit.split("-")[:2])
+
+
+def model_text(rows: list[dict], effects: dict) -> str:
+    """The fitted model(s) of ``rows``: each row's own effects (``effects`` for rows written
+    before they were recorded), per design where the designs' differ."""
+    by_model: dict[str, list[str]] = {}
+    for r in rows:
+        designs = by_model.setdefault(json.dumps(r.get("effects", effects)), [])
+        if _design(r["unit"]) not in designs:
+            designs.append(_design(r["unit"]))
+    if len(by_model) == 1:
+        return f"base + {next(iter(by_model))}"
+    return "; ".join(f"base + {model} on the {', '.join(designs)} loops" for model, designs in by_model.items())
+
+
 def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise: str, laplace_shape: str = "gaussian",
              hop: bool = False) -> str:
     rows = sorted(rows, key=lambda r: r["unit"])  # the table in unit order, whatever order they were fitted in
     lines = [
-        f"Measured loops ({SOURCE}). Model: base + {json.dumps(effects)}, "
+        f"Measured loops ({SOURCE}). Model: {model_text(rows, effects)}, "
         + ("the MAP hopped to the hold mode where that is higher (--hop-to-the-hold), " if hop else "") +
         f"{NOISE_TEXT[noise]}, posterior by {posterior_text(sampler, laplace_shape)}, fitted to each file without its last large ramp (block means of {decimate} samples). "
         "RMSE in arcsec on the raw samples; held-out = the last large ramp predicted from the rest of the file "
@@ -578,7 +616,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                              "default on; --no-class-noise: one level per file)")
     parser.add_argument("--hop-to-the-hold", action="store_true",
                         help="one more MAP run from the hold mode the cycles' readings point at (FitOptions.hop_to_the_hold)")
-    parser.add_argument("--effects", type=json.loads, default=EFFECTS, help=f"model effects as JSON (default {json.dumps(EFFECTS)})")
+    parser.add_argument("--effects", type=json.loads, default=None,
+                        help=f"model effects as JSON for every unit (default: by design, {json.dumps(DESIGN_EFFECTS)}, "
+                             f"else {json.dumps(EFFECTS)})")
     parser.add_argument("--save-predictions", type=Path, default=None,
                         help="also write each unit's data and predictive draws to DIR/<unit>.npz (derived from the "
                              "measured files: keep it outside the repository)")
@@ -589,6 +629,8 @@ def parse_args(argv=None) -> argparse.Namespace:
                         help="recompute the data-only play and loading compliance for OUTPUT/validation.json from the measured files "
                              "(no model fit) and re-write the table")
     parser.add_argument("--table-only", action="store_true", help="re-write validation.md from OUTPUT/validation.json")
+    parser.add_argument("--append", action="store_true",
+                        help="keep OUTPUT/validation.json's rows of the units not fitted now (their fits as they were)")
     return parser.parse_args(argv)
 
 
@@ -610,7 +652,7 @@ def _main(args) -> int:
         if args.refresh_references or args.refresh_data_metrics:
             (args.output / "validation.json").write_text(json.dumps(doc, indent=1, default=float))
         # written before the noise / the Laplace shape were recorded: AR(1) / the Gaussian
-        text = markdown(doc["units"], doc.get("decimate", args.decimate), doc.get("sampler", args.sampler), doc.get("effects", args.effects),
+        text = markdown(doc["units"], doc.get("decimate", args.decimate), doc.get("sampler", args.sampler), doc.get("effects", args.effects or EFFECTS),
                         doc.get("noise", "ar1"), doc.get("laplace_shape", "gaussian"), doc.get("hop_to_the_hold", False))
         (args.output / "validation.md").write_text(text + "\n")
         print(text)
@@ -620,6 +662,7 @@ def _main(args) -> int:
         return 0
     units = args.units or sorted(p.stem for p in EXAMPLES.glob("*.toml"))
     args.output.mkdir(parents=True, exist_ok=True)
+    kept = _kept_rows(args, units)  # checked before any fit
     with contextlib.ExitStack() as stack:
         if args.jobs > 1:
             # units in separate processes (one JAX runtime each; the fits are mostly sequential scans)
@@ -631,21 +674,39 @@ def _main(args) -> int:
         else:
             results = map(_validate_in_float64, units, [args] * len(units))
         # each row is written as it comes (in order), so a run cut short keeps what it has done
-        rows = _write_rows(args, units, results)
-    text = markdown(rows, args.decimate, args.sampler, args.effects, _noise(args), args.laplace_shape, args.hop_to_the_hold)
+        rows = _write_rows(args, units, results, kept)
+    text = markdown(rows, args.decimate, args.sampler, args.effects or EFFECTS, _noise(args), args.laplace_shape, args.hop_to_the_hold)
     (args.output / "validation.md").write_text(text + "\n")
     print(text)
     return 0
 
 
-def _write_rows(args, units, results) -> list[dict]:
-    rows = []
+def _kept_rows(args, units) -> list[dict]:
+    """With ``--append``, OUTPUT/validation.json's rows of units other than ``units``; they must
+    have been fitted with the same settings."""
+    path = args.output / "validation.json"
+    if not (args.append and path.is_file()):
+        return []
+    doc = json.loads(path.read_text())
+    settings = {"decimate": args.decimate, "sampler": args.sampler, "noise": _noise(args), "laplace_shape": args.laplace_shape,
+                "hop_to_the_hold": args.hop_to_the_hold}
+    for key, value in settings.items():
+        if doc.get(key, False if key == "hop_to_the_hold" else None) != value:
+            raise SystemExit(f"--append: {path} was written with {key} = {doc.get(key)!r}, this run has {value!r}")
+    # rows written before each recorded its model were fitted with the document's
+    return [{"effects": doc.get("effects", EFFECTS), **r} for r in doc["units"] if r["unit"] not in units]
+
+
+def _write_rows(args, units, results, kept: list[dict]) -> list[dict]:
+    rows = list(kept)
     for unit, row in zip(units, results):
         rows.append(row)
         print(f"{unit}: held-out {row['rmse_held_out_arcsec']:.0f}″ (reference {row['reference']['oos_rest']:.0f}″, "
               f"ratio {row['ratio_held_out']:.2f}), coverage {100 * row['coverage90_held_out']:.0f} %, fit {row['seconds_fit']:.0f} s", file=sys.stderr)
         (args.output / "validation.json").write_text(json.dumps({"source": SOURCE, "decimate": args.decimate, "sampler": args.sampler,
-                                                                       "effects": args.effects, "noise": _noise(args),
+                                                                       "effects": args.effects or EFFECTS,
+                                                                       **({} if args.effects else {"design_effects": DESIGN_EFFECTS}),
+                                                                       "noise": _noise(args),
                                                                        "laplace_shape": args.laplace_shape,
                                                                        **({"hop_to_the_hold": True} if args.hop_to_the_hold else {}),
                                                                        "units": rows},

@@ -5,6 +5,7 @@ skipped when absent). The whole validation run is a command (minutes per file), 
 
 import argparse
 import importlib.util
+import json
 from pathlib import Path
 
 import numpy as np
@@ -168,7 +169,6 @@ def test_the_validation_fits_with_iid_noise_and_ar1_on_request():
     assert not mv.fit_options(mv.parse_args(["--no-class-noise"])).noise.cycle_class_noise  # ... or one
     assert mv._noise(mv.parse_args([])) == "iid-class" and mv._noise(mv.parse_args(["--ar1"])) == "ar1"
     assert mv._noise(mv.parse_args(["--no-class-noise"])) == "iid"
-    import json
 
     doc = json.loads((ROOT / "docs" / "measured" / "validation" / "validation.json").read_text())
     for noise, words in (("iid-class", "a level per cycle class"), ("iid", "iid noise with the posterior widened"),
@@ -177,13 +177,50 @@ def test_the_validation_fits_with_iid_noise_and_ar1_on_request():
     assert doc["noise"] == "iid-class"  # the committed table is the validated setting's
 
 
+def test_each_design_is_fitted_with_its_declared_model_and_the_table_says_which():
+    """The split-pinwheel design is preloaded: its loops get the preloaded second path and the
+    friction level remembering the peak load (``DESIGN_EFFECTS``), the baseline design the
+    validation's ``EFFECTS``; ``--effects`` fits every unit with one model. Each row records its
+    model, and the table's head names the model per design."""
+    by_design = mv.parse_args([])
+    split, baseline = "split-pccf-preload2-pos6", "baseline-pccf-initial-pos1"
+    assert mv.fit_options(by_design, split).effects == mv.DESIGN_EFFECTS["split-pccf"]
+    assert mv.fit_options(by_design, baseline).effects == mv.EFFECTS
+    assert mv.DESIGN_EFFECTS["split-pccf"]["preload_stiffening"] and not mv.EFFECTS.get("preload_stiffening")
+    one = mv.parse_args(["--effects", '{"asymmetry": true}'])
+    assert mv.fit_options(one, split).effects == mv.fit_options(one, baseline).effects == {"asymmetry": True}
+    rows = [{"unit": split, "effects": mv.DESIGN_EFFECTS["split-pccf"]}, {"unit": "split-pccf-initial-pos1",
+            "effects": mv.DESIGN_EFFECTS["split-pccf"]}, {"unit": baseline, "effects": mv.EFFECTS}]
+    text = mv.model_text(rows, mv.EFFECTS)
+    assert text.count("base + ") == 2 and "on the split-pccf loops" in text and "on the baseline-pccf loops" in text, text
+    # rows written before the model was recorded per row: the document's one model
+    assert mv.model_text([{"unit": split}, {"unit": baseline}], mv.EFFECTS) == f"base + {json.dumps(mv.EFFECTS)}"
+
+
+def test_append_keeps_the_other_units_rows_only_from_a_run_with_the_same_settings(tmp_path):
+    """``--append`` re-fits some units and keeps the rest of OUTPUT/validation.json, each kept row
+    with the model it was fitted with; a file written with other settings stops the run before
+    any fit, with one line naming the setting."""
+    args = mv.parse_args(["-o", str(tmp_path), "--append", "--units", "a-b-c-pos1"])
+    assert mv._kept_rows(args, ["a-b-c-pos1"]) == []  # nothing to keep yet
+    settings = {"decimate": args.decimate, "sampler": args.sampler, "noise": mv._noise(args), "laplace_shape": args.laplace_shape}
+    doc = {**settings, "effects": {"asymmetry": True},
+           "units": [{"unit": "a-b-c-pos1"}, {"unit": "a-b-c-pos5"}, {"unit": "x-y-c-pos1", "effects": {"gap_hold": True}}]}
+    (tmp_path / "validation.json").write_text(json.dumps(doc))
+    assert mv._kept_rows(args, ["a-b-c-pos1"]) == [{"unit": "a-b-c-pos5", "effects": {"asymmetry": True}},
+                                                  {"unit": "x-y-c-pos1", "effects": {"gap_hold": True}}]
+    assert mv._kept_rows(mv.parse_args(["-o", str(tmp_path)]), ["a-b-c-pos1"]) == []  # without --append: a new table
+    (tmp_path / "validation.json").write_text(json.dumps({**doc, "decimate": 4}))
+    with pytest.raises(SystemExit, match="written with decimate = 4"):
+        mv._kept_rows(args, ["a-b-c-pos1"])
+
+
 def test_the_validation_draws_from_the_split_normal_and_the_gaussian_on_request():
     """Widened fits of these loops are not Gaussian (a ridge ending in walls): the validation's
     Laplace draws come from the split normal, ``--laplace-shape gaussian`` gives the Gaussian's,
     and the table and json say which."""
     assert mv.fit_options(mv.parse_args([])).laplace_shape == "split"
     assert mv.fit_options(mv.parse_args(["--laplace-shape", "gaussian"])).laplace_shape == "gaussian"
-    import json
 
     doc = json.loads((ROOT / "docs" / "measured" / "validation" / "validation.json").read_text())
     assert doc["laplace_shape"] == "split"
@@ -250,5 +287,11 @@ def test_the_preloaded_play_ramps_are_far_narrower_in_torque_than_the_largest_cy
     with pytest.raises(argparse.ArgumentTypeError, match="NAME=VALUE"):
         probe._move("gap_hold_torque")
     for unit in probe.DEFAULT_UNITS:
-        small, large = cycle_friction_readings_Nm(load_campaign(mv.manifest(unit, None, tmp_path)))
+        campaign = load_campaign(mv.manifest(unit, None, tmp_path))
+        small, large = cycle_friction_readings_Nm(campaign)
         assert 1.0 < small < 1.6 and large > 3.0 * small, (unit, small, large)
+        # the probe's play reading is the metrics' loop width at zero torque: the preloaded
+        # units' plays are 0.10-0.23 deg (the data's authors: 0.208 and 0.121 deg per configuration)
+        runs = campaign.hysteresis_runs
+        ramps = probe.play_ramps(runs, [r.angle_rad for r in runs])
+        assert 0.09 < ramps["play_deg"] < 0.25 and ramps["half_width_Nm"] == pytest.approx(small, rel=0.2), (unit, ramps)
