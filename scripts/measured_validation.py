@@ -130,7 +130,7 @@ def effects_for(unit: str | None, args) -> dict:
     (:data:`DESIGN_EFFECTS`, by the unit name's prefix) or :data:`EFFECTS`."""
     if args.effects is not None:
         return args.effects
-    return next((e for design, e in DESIGN_EFFECTS.items() if unit and unit.startswith(design + "-")), EFFECTS)
+    return DESIGN_EFFECTS.get(_design(unit), EFFECTS) if unit else EFFECTS
 
 
 def fit_options(args, unit: str | None = None) -> FitOptions:
@@ -151,7 +151,8 @@ def validate(unit: str, folder: Path, args) -> dict:
     train = load_campaign(manifest(unit, [r for r in ramps if r != last], folder))
     whole = decimate(load_campaign(manifest(unit, None, folder)), args.decimate)
     t0 = time.perf_counter()
-    fit = fit_campaign(train, fit_options(args, unit), seed=args.seed)
+    options = fit_options(args, unit)
+    fit = fit_campaign(train, options, seed=args.seed)
     seconds = time.perf_counter() - t0
     problem = fit.problem
     # the product's own check on the fitted file (fit.json): the class metrics read off the
@@ -193,7 +194,7 @@ def validate(unit: str, folder: Path, args) -> dict:
     large_train = (nr >= 100) & ~held
     out = {
         "unit": unit,
-        "effects": effects_for(unit, args),
+        "effects": options.effects,
         "seconds_fit": seconds,
         "rmse_in_sample_arcsec": float(np.sqrt(np.mean((y[~held] - mean[~held]) ** 2)) / ARCSEC),
         "rmse_in_sample_large_arcsec": float(np.sqrt(np.mean((y[large_train] - mean[large_train]) ** 2)) / ARCSEC),
@@ -690,9 +691,10 @@ def _kept_rows(args, units) -> list[dict]:
     doc = json.loads(path.read_text())
     settings = {"decimate": args.decimate, "sampler": args.sampler, "noise": _noise(args), "laplace_shape": args.laplace_shape,
                 "hop_to_the_hold": args.hop_to_the_hold}
+    recorded = {"hop_to_the_hold": False, **doc}  # written only when on
     for key, value in settings.items():
-        if doc.get(key, False if key == "hop_to_the_hold" else None) != value:
-            raise SystemExit(f"--append: {path} was written with {key} = {doc.get(key)!r}, this run has {value!r}")
+        if recorded.get(key) != value:
+            raise SystemExit(f"--append: {path} was written with {key} = {recorded.get(key)!r}, this run has {value!r}")
     # rows written before each recorded its model were fitted with the document's
     return [{"effects": doc.get("effects", EFFECTS), **r} for r in doc["units"] if r["unit"] not in units]
 
