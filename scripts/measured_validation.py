@@ -357,6 +357,24 @@ def _figure(unit, t, tau, y, pred, lo, hi, held, folder: Path):
     plt.close(fig)
 
 
+def _converged(row: dict) -> str:
+    """The fit's word; for a MAP that stopped short of its tolerance, how far its optimum is."""
+    d = row["diagnostics"]
+    step = d.get("map_newton_step_sd")
+    return f"{d['converged']}" + (f" (MAP {step:.2g} sd short)" if not d["converged"] and step is not None else "")
+
+
+def _short_text(rows: list[dict]) -> str:
+    """The summary's note on MAPs that stopped short (rows fitted since the fit records it)."""
+    short = [(r["unit"], r["diagnostics"]["map_newton_step_sd"]) for r in rows
+             if not r["diagnostics"]["converged"] and r["diagnostics"].get("map_newton_step_sd") is not None]
+    if not short:
+        return ""
+    each = ", ".join(f"{unit} {step:.2g}" for unit, step in short)
+    return (f" (the MAP stopped short of the solver's tolerance, its Gauss–Newton step to the optimum in posterior sd: "
+            f"{each})")
+
+
 def _map_rmse(row: dict) -> str:
     v = row.get("rmse_held_out_map_arcsec")
     return "n/a" if v is None else f"{v:.0f}"
@@ -461,7 +479,7 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
         cd_s = f"{cd:.4f}" + (f" ± {se:.4f}" if se is not None else "")
         lines.append(
             f"| {r['unit']} | {r['rmse_in_sample_arcsec']:.0f} | {r['rmse_held_out_arcsec']:.0f} | {_map_rmse(r)} | {r['reference']['oos_rest']:.0f} | "
-            f"{r['ratio_held_out']:.2f} | {_physical(r)} | {_lagged(r)} | {_repeat(r)} | {100 * r['coverage90_held_out']:.0f} % | {r['play_data_deg']:.3f} | {pm_s} | {cd_s} | {cm_s} | {r.get('misfit_inflation', 1.0):.1f} | {r['diagnostics']['converged']} |"
+            f"{r['ratio_held_out']:.2f} | {_physical(r)} | {_lagged(r)} | {_repeat(r)} | {100 * r['coverage90_held_out']:.0f} % | {r['play_data_deg']:.3f} | {pm_s} | {cd_s} | {cm_s} | {r.get('misfit_inflation', 1.0):.1f} | {_converged(r)} |"
         )
     ratios = np.array([r["ratio_held_out"] for r in rows])
     cover = np.array([r["coverage90_held_out"] for r in rows])
@@ -469,7 +487,7 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
               f"(≤ 0.8× on {int(np.sum(ratios <= 0.8))}; median ratio {np.median(ratios):.2f}, worst {ratios.max():.2f}); "
               f"90 % predictive interval covering 80–95 % of the held-out ramp on {int(np.sum((cover >= 0.8) & (cover <= 0.95)))} of {len(rows)} "
               f"(median {100 * np.median(cover):.0f} %, range {100 * cover.min():.0f}–{100 * cover.max():.0f} %); "
-              f"converged on {sum(bool(r['diagnostics']['converged']) for r in rows)} of {len(rows)}."]
+              f"converged on {sum(bool(r['diagnostics']['converged']) for r in rows)} of {len(rows)}{_short_text(rows)}."]
     with_c = [r for r in rows if r.get("compliance_model_deg_per_Nm")]
     if with_c:
         own = [r for r in with_c if r["compliance_model_deg_per_Nm"]["hdi95"][0] <= np.mean(r["compliance_data_deg_per_Nm"])

@@ -161,3 +161,25 @@ def test_map_programs_compile_with_xla_defaults_where_xla_lacks_the_options(monk
         assert _map._map_compiler_options() is None
     finally:
         _map._map_compiler_options.cache_clear()
+
+
+def test_the_newton_step_says_how_far_a_point_is_from_the_optimum(problem):
+    """``newton_step``: about 0 at the MAP; half a posterior sd off along one parameter, the
+    Gauss–Newton step leads back by that half sd along it (z) and predicts the log density lost
+    (λ²/2); a solve stopped by its step budget says so in its message."""
+    result = fit_map(problem, n_starts=1, seed=0)
+    lam, z = _map.newton_step(problem, result.u)
+    assert result.converged and lam < 1e-2 and np.max(np.abs(z)) <= lam + 1e-12
+    n = problem.n_nonlinear
+    k = int(np.argmax(result.sd[:n]))
+    off = result.u.copy()
+    off[k] += 0.5 * result.sd[k]
+    lam, z = _map.newton_step(problem, off)
+    lost = float(_map.log_density(problem, jnp.asarray(result.u)) - _map.log_density(problem, jnp.asarray(off)))
+    assert abs(z[k] + 0.5) < 0.05 and np.max(np.abs(np.delete(z, k))) < 0.5
+    assert lost > 0 and abs(0.5 * lam**2 - lost) < 0.2 * lost
+    short = fit_map(problem, n_starts=1, seed=0, max_steps=2, noise_passes=1)
+    assert not short.converged and result.newton_step_sd is None
+    assert short.newton_step_sd == pytest.approx(_map.newton_step(problem, short.u)[0])
+    assert f"the Gauss–Newton step from there is {short.newton_step_sd:.2g} posterior sd" in short.message
+    assert "\n" not in short.message

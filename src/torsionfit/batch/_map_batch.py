@@ -21,7 +21,7 @@ import optimistix as optx
 
 from .._x64 import in_float64
 from ..fit import MapResult, best_start, fit_map, iid_noise, laplace_from_parts, map_starts
-from ..fit._map import _message, laplace_parts, noise_pass, same_optimum
+from ..fit._map import _message, laplace_parts, noise_pass, same_optimum, stopped_short
 from ._shape import stack_problems
 
 Lanes = Literal["auto", "serial", "vmap"]
@@ -120,7 +120,11 @@ def fit_map_batch(problems: list, run_names: list, seeds: list[int], *, n_starts
             continue
         u, ld, ok, message, messages, start_lds = p
         cov = laplace_from_parts(problem, u, jac[i], sigma[i], rho[i])
+        step_sd = None
+        if not ok:  # as fit_map: how far the optimum is from where the solve stopped
+            step_sd, message = stopped_short(problem, tuple(names), u, message)
         out.append(MapResult(problem=problem, run_names=tuple(names), u=u, cov=cov,
                              values={k: np.asarray(v[i]) for k, v in values.items()}, log_density=ld,
-                             converged=ok, message=message, starts=list(zip(start_lds.tolist(), messages))))
+                             converged=ok, message=message, starts=list(zip(start_lds.tolist(), messages)),
+                             newton_step_sd=step_sd))
     return out

@@ -151,6 +151,44 @@ def laplace_parts(problem: FitProblem, u):
 _laplace_parts = _map_jit(laplace_parts)
 
 
+def _objective_parts(problem: FitProblem, u):
+    """What LM minimises (½‖r‖²) at u: its residuals r and their Jacobian in the physics block."""
+    n = problem.n_nonlinear
+    f = lambda a: _lm_objective_residuals(a, (problem, u[n:]))  # noqa: E731
+    return f(u[:n]), jax.jacfwd(f)(u[:n])
+
+
+_objective_parts_jit = _map_jit(_objective_parts)
+
+
+@in_float64
+def newton_step(problem: FitProblem, u) -> tuple[float, np.ndarray]:
+    """How far the MAP's objective says its optimum is from u: (λ, z). The Gauss–Newton step δ
+    from u (−δ, δ the least-squares solution of J δ = r), measured by the objective's own curvature:
+    λ = √(δᵀ JᵀJ δ), the step in posterior standard deviations (the Newton decrement: λ²/2 is
+    the log density the step is predicted to gain), and z_k = δ_k / sd_k per physics parameter
+    (|z_k| ≤ λ). Near 0 at an optimum; a point where LM stopped with λ of order 1 or more is
+    not at one (on a smooth objective the step is there to take; where it is not taken the
+    objective is not smooth along it)."""
+    r, jac = _objective_parts_jit(problem, jnp.asarray(u))
+    r, jac = np.asarray(r, float), np.asarray(jac, float)
+    step = -np.linalg.lstsq(jac, r, rcond=None)[0]  # u − δ minimises the linearised ½‖r + J·step‖²
+    lam = float(np.linalg.norm(jac @ step))
+    sd = np.sqrt(np.clip(np.diag(np.linalg.pinv(jac.T @ jac)), 1e-300, None))
+    return lam, step / sd
+
+
+def stopped_short(problem: FitProblem, run_names, u, message: str) -> tuple[float, str]:
+    """For a solve that ended without meeting its tolerance at u: (λ, the solver's ``message``
+    with the Newton step from u, :func:`newton_step` — how far the optimum is and along which
+    parameter)."""
+    lam, z = newton_step(problem, u)
+    names = problem.names(run_names)
+    k = int(np.argmax(np.abs(z)))
+    return lam, (f"{message.split('. ')[0].rstrip('.')}; the Gauss–Newton step from there is {lam:.2g} posterior sd "
+                 f"(largest along {names[k]}, {z[k]:+.2g} sd)")
+
+
 @in_float64
 def laplace_covariance(problem: FitProblem, u) -> np.ndarray:
     """Laplace covariance of u at the MAP: Gauss–Newton (JᵀJ)⁻¹ for the physics (J of the
@@ -198,6 +236,8 @@ class MapResult:
     converged: bool
     message: str  # optimistix's result for the chosen start
     starts: list = field(default_factory=list)  # (log_density, message) per start (shared: same optimum)
+    #: not converged: the Gauss–Newton step from u in posterior sd (:func:`newton_step`); None when converged
+    newton_step_sd: float | None = None
 
     @property
     def names(self) -> list[str]:
@@ -352,8 +392,12 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
                      bool(result == optx.RESULTS.successful), _message(result))
     us, lds, oks, messages = zip(*(finals[r] for r in rep))
     u, ld, ok, message = best_start(us, lds, oks, messages)
+    step_sd = None
+    if not ok:
+        step_sd, message = stopped_short(problem, run_names, u, message)
     jac, sigma, rho, values, _ = _laplace_parts(problem, u)
     cov = laplace_from_parts(problem, u, jac, sigma, rho)
     values = {k: np.asarray(v) for k, v in values.items()}
     return MapResult(problem=problem, run_names=run_names, u=u, cov=cov, values=values,
-                     log_density=ld, converged=ok, message=message, starts=list(zip(lds, messages)))
+                     log_density=ld, converged=ok, message=message, starts=list(zip(lds, messages)),
+                     newton_step_sd=step_sd)

@@ -534,6 +534,8 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     # 1: the posterior as the likelihood gives it; k > 1: widened for misfit (fit/_misfit.py)
     diagnostics["misfit_inflation"] = float(1.0 / problem.likelihood_power)
     diagnostics["map_message"] = map_result.message
+    # not converged: how far the optimum is, in posterior sd (fit/_map.py newton_step)
+    diagnostics["map_newton_step_sd"] = map_result.newton_step_sd
     near_bound = {names[r]: rho for r, rho in misfit_correlated_runs(problem, map_result.u).items()}
     diagnostics["ar1_misfit_runs"] = near_bound
     if options.noise.cycle_class_noise:
