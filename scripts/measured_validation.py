@@ -141,6 +141,7 @@ def fit_options(args, unit: str | None = None) -> FitOptions:
                       hop_to_the_hold=getattr(args, "hop_to_the_hold", False),
                       noise=NoiseOptions(ar1=None if args.ar1 else False, cycle_amplitude_noise=args.cycle_noise,
                                          cycle_class_noise=args.class_noise,
+                                         first_excursion_class=getattr(args, "first_excursion_class", False),
                                          torque_error_variance=not args.no_torque_error_variance))
 
 
@@ -415,12 +416,19 @@ NOISE_TEXT = {
     "iid": "iid noise with the posterior widened for structure the residuals keep",
     "iid-class": "iid noise with a level per cycle class (play ramps, stiffness ramps; their ratio read at the MAP) "
                  "and the posterior widened for structure the residuals keep",
+    "iid-class-first": "iid noise with a level per cycle class (play ramps, the ramps that first load the file beyond its "
+                       "earlier peaks, the repeated stiffness ramps; their ratios read at the MAP) and the posterior widened "
+                       "for structure the residuals keep",
     "ar1": "AR(1) noise",
 }
 
 
 def _noise(args) -> str:
-    return "ar1" if args.ar1 else "iid-class" if args.class_noise else "iid"
+    if args.ar1:
+        return "ar1"
+    if args.class_noise:
+        return "iid-class-first" if getattr(args, "first_excursion_class", False) else "iid-class"
+    return "iid"
 
 
 def posterior_text(sampler: str, laplace_shape: str) -> str:
@@ -633,6 +641,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--class-noise", action=argparse.BooleanOptionalAction, default=True,
                         help="a noise level per cycle class, their ratio read at the MAP (NoiseOptions.cycle_class_noise; "
                              "default on; --no-class-noise: one level per file)")
+    parser.add_argument("--first-excursion-class", action="store_true",
+                        help="the ramps that first load the file beyond its earlier peaks (the first large ramp) a cycle "
+                             "class of their own (NoiseOptions.first_excursion_class; needs the class noise)")
     parser.add_argument("--hop-to-the-hold", action="store_true",
                         help="one more MAP run from the hold mode the cycles' readings point at (FitOptions.hop_to_the_hold)")
     parser.add_argument("--effects", type=json.loads, default=None,
@@ -650,7 +661,10 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--table-only", action="store_true", help="re-write validation.md from OUTPUT/validation.json")
     parser.add_argument("--append", action="store_true",
                         help="keep OUTPUT/validation.json's rows of the units not fitted now (their fits as they were)")
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    if args.first_excursion_class and not args.class_noise:
+        parser.error("--first-excursion-class is a cycle class: it needs the class noise (drop --no-class-noise)")
+    return args
 
 
 def _validate_in_float64(unit: str, args) -> dict:

@@ -129,7 +129,8 @@ def _cmd_fit(args) -> int:
     out = Path(args.output)
     options = FitOptions(
         effects=_parse_effects(args.with_),
-        noise=NoiseOptions(ar1=AR1[args.ar1], student_t_dof=args.student_t, cycle_class_noise=args.class_noise),
+        noise=NoiseOptions(ar1=AR1[args.ar1], student_t_dof=args.student_t, cycle_class_noise=args.class_noise or args.first_excursion_class,
+                           first_excursion_class=args.first_excursion_class),
         sampler=args.sampler,
         n_walkers=args.walkers,
         max_steps=args.max_steps,
@@ -354,6 +355,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--class-noise", action="store_true",
                    help="a noise level per class of cycle amplitude (play ramps, stiffness ramps), their ratio read "
                         "from the residuals at the MAP; the shares go to fit.json")
+    p.add_argument("--first-excursion-class", action="store_true",
+                   help="with the class noise (implied): the ramps that first load a run beyond its earlier peaks "
+                        "(the first large ramp) a class of their own, the repeated ramps' level the largest class's")
     p.add_argument("--save-chain", action="store_true",
                    help="keep the chain in OUTPUT/chain.h5 (emcee) / OUTPUT/chain-nuts.npz (NUTS)")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from those files")

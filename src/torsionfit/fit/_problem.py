@@ -71,6 +71,10 @@ class NoiseOptions:
     # their ratios read from the residuals at the MAP and the fit repeated with them
     # (fit/_noise_classes.py); the run's noise parameter is the level of its largest cycles.
     cycle_class_noise: bool = False
+    # True (with cycle_class_noise): the ramps that first load a run beyond its earlier peaks
+    # (the first large ramp after the play ramps) are a class of their own among the largest
+    # cycles, whose level (class 0) is then the repeated ramps' (fit/_noise_classes.py)
+    first_excursion_class: bool = False
     # True: the denoised drive torque's error enters each hysteresis sample's variance as the
     # angle the *measured* loop branch moves across ±sd τ̂ (errors in variables, from the data:
     # fit/_torque_error.py). False: the angle noise alone (the latent torque knots stay).
@@ -204,6 +208,8 @@ class FitProblem(eqx.Module):
     # the likelihood's power in log_density (1: Bayes; 1/k < 1: widened for structure the model
     # lacks, see fit/_misfit.py); the pointwise log-likelihood (LOO) is never tempered
     likelihood_power: float = np.float64(1.0)  # a NumPy scalar: traced, one compile for every power
+    # the cycle classes split the first excursions off (NoiseOptions.first_excursion_class)
+    first_excursion_class: bool = eqx.field(static=True, default=False)
 
     # --- sizes -----------------------------------------------------------------------------
     @property
@@ -524,6 +530,8 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
     if noise.cycle_amplitude_noise and noise.cycle_class_noise:
         raise ValueError("NoiseOptions: cycle_amplitude_noise and cycle_class_noise are two shapes of the same "
                          "noise level; choose one")
+    if noise.first_excursion_class and not noise.cycle_class_noise:
+        raise ValueError("NoiseOptions: first_excursion_class is a cycle class: it needs cycle_class_noise")
     if noise.cycle_class_noise:
         # one level for now: the fit sets the class shares at its MAP (fit/_noise_classes.py)
         shape = [jnp.ones(len(run)) for run in campaign.runs]
@@ -538,5 +546,5 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
         inputs=inputs, y=y, eiv_var=[jnp.asarray(v) for v in eiv_var],
         design=design, knot_basis=bases, floors=jnp.asarray(np.full(len(y), floor)),
         prior_mean=jnp.asarray(prior_mean), prior_sd=jnp.asarray(prior_sd), noise_prior_mean=jnp.asarray(np.log(1e-2 * ranges)),
-        noise_shape=shape,
+        noise_shape=shape, first_excursion_class=noise.first_excursion_class,
     )
