@@ -20,10 +20,9 @@ class the ratios' own uncertainty is negligible beside the physics'.
 **First excursions** (``NoiseOptions.first_excursion_class``). The ramps that first load a run
 beyond every earlier peak of their sign can be a class of their own among the largest cycles.
 On measured printed cycloidal loops the first ±40 N·m ramp after the play ramps does not repeat:
-its twist, at the peaks too, differs from the next ramp's by several times what the later ramps
-differ by from each other (the loop shakes down; a hysteresis operator, whose state at a peak
-is wiped clean, cannot draw that), and a fit that weighs it as a repeat bends the model of
-every later ramp towards it. With a level of its own, read from its residuals like the other classes',
+its first branches differ from the next ramp's by several times what the later ramps differ by
+from each other (the loop shakes down; ``scripts/measured_ramp_repeats.py``), and a fit that
+weighs it as a repeat bends the model of every later ramp towards it. With a level of its own, read from its residuals like the other classes',
 the fit weighs it by how well the model draws it; class 0, whose level predicts a new large
 ramp, is then the repeats'.
 """
