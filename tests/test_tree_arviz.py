@@ -35,7 +35,7 @@ def fits(small, tmp_path_factory):
     problem = small.problem
     with pytest.warns(ConvergenceWarning):
         res = run_sampler(problem, small.start, seed=0, max_steps=300, check_every=150, progress=False)
-    stand_in = SimpleNamespace(u=small.start.u, cov=np.cov(res.flat().T), converged=True,
+    stand_in = SimpleNamespace(u=small.start.u, cov=np.cov(res.flat().T), converged=True, newton_step_sd=None,
                                message="SYNTHETIC stand-in for the MAP: the truth, the emcee draws' covariance")
     out = {}
     for sampler in ("emcee", "laplace"):
