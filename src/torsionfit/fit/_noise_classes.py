@@ -22,9 +22,9 @@ beyond every earlier peak of their sign can be a class of their own among the la
 On measured printed cycloidal loops the first ±40 N·m ramp after the play ramps does not repeat:
 its first branches differ from the next ramp's by several times what the later ramps differ by
 from each other (the loop shakes down; ``scripts/measured_ramp_repeats.py``), and a fit that
-weighs it as a repeat bends the model of every later ramp towards it. With a level of its own, read from its residuals like the other classes',
-the fit weighs it by how well the model draws it; class 0, whose level predicts a new large
-ramp, is then the repeats'.
+weighs it as a repeat bends the model of every later ramp towards it. With a level of its own,
+read from its residuals like the other classes', the fit weighs it by how well the model draws
+it; class 0, whose level predicts a new large ramp, is then the repeats'.
 """
 
 import equinox as eqx
@@ -100,23 +100,29 @@ def first_excursions(torque_Nm, margin: float = FIRST_EXCURSION_MARGIN) -> np.nd
     return out
 
 
+def _split_first_excursions(torque_Nm, min_samples: int) -> tuple[np.ndarray, int | None]:
+    """(:func:`excursion_classes`, the first excursions' class or None when not split off)."""
+    classes = amplitude_classes(torque_Nm, min_samples=min_samples)
+    first = first_excursions(torque_Nm) & (classes == 0)
+    if np.sum(first) < min_samples or np.sum((classes == 0) & ~first) < min_samples:
+        return classes, None
+    index = int(classes.max()) + 1
+    classes = classes.copy()
+    classes[first] = index
+    return classes, index
+
+
 def excursion_classes(torque_Nm, min_samples: int = CLASS_MIN_SAMPLES) -> np.ndarray:
     """:func:`amplitude_classes` with the first excursions of the largest cycles
     (:func:`first_excursions`) a class of their own, numbered after the others — when both they
     and the repeats have ``min_samples``; class 0 stays the largest cycles' repeats."""
-    classes = amplitude_classes(torque_Nm, min_samples=min_samples)
-    first = first_excursions(torque_Nm) & (classes == 0)
-    if np.sum(first) >= min_samples and np.sum((classes == 0) & ~first) >= min_samples:
-        classes = classes.copy()
-        classes[first] = int(classes.max()) + 1
-    return classes
+    return _split_first_excursions(torque_Nm, min_samples)[0]
 
 
-def first_excursion_index(torque_Nm) -> int | None:
+def first_excursion_index(torque_Nm, min_samples: int = CLASS_MIN_SAMPLES) -> int | None:
     """The class :func:`excursion_classes` gives the first excursions, None when they are not
     split off."""
-    split, plain = excursion_classes(torque_Nm), amplitude_classes(torque_Nm)
-    return int(split.max()) if split.max() > plain.max() else None
+    return _split_first_excursions(torque_Nm, min_samples)[1]
 
 
 def repeats_first(shape, classes, first: int | None) -> np.ndarray:
