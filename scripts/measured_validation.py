@@ -142,6 +142,7 @@ def fit_options(args, unit: str | None = None) -> FitOptions:
                       noise=NoiseOptions(ar1=None if args.ar1 else False, cycle_amplitude_noise=args.cycle_noise,
                                          cycle_class_noise=args.class_noise,
                                          first_excursion_class=getattr(args, "first_excursion_class", False),
+                                         first_excursion_conditioning=getattr(args, "condition_first_excursions", False),
                                          torque_error_variance=not args.no_torque_error_variance))
 
 
@@ -419,6 +420,13 @@ NOISE_TEXT = {
     "iid-class-first": "iid noise with a level per cycle class (play ramps, the ramps that first load the file beyond its "
                        "earlier peaks, the repeated stiffness ramps; their ratios read at the MAP) and the posterior widened "
                        "for structure the residuals keep",
+    "iid-conditioned": "iid noise, the ramps that first load the file beyond its earlier peaks conditioning only (they "
+                       "drive the model's state, out of the likelihood) and the posterior widened for structure the "
+                       "residuals keep",
+    "iid-class-conditioned": "iid noise with a level per cycle class (play ramps, stiffness ramps; their ratio read at the MAP), "
+                             "the ramps that first load the file beyond its earlier peaks conditioning only (they drive "
+                             "the model's state, out of the likelihood) and the posterior widened for structure the "
+                             "residuals keep",
     "ar1": "AR(1) noise",
 }
 
@@ -427,8 +435,10 @@ def _noise(args) -> str:
     if args.ar1:
         return "ar1"
     if args.class_noise:
+        if getattr(args, "condition_first_excursions", False):
+            return "iid-class-conditioned"
         return "iid-class-first" if getattr(args, "first_excursion_class", False) else "iid-class"
-    return "iid"
+    return "iid-conditioned" if getattr(args, "condition_first_excursions", False) else "iid"
 
 
 def posterior_text(sampler: str, laplace_shape: str) -> str:
@@ -644,6 +654,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--first-excursion-class", action="store_true",
                         help="the ramps that first load the file beyond its earlier peaks (the first large ramp) a cycle "
                              "class of their own (NoiseOptions.first_excursion_class; needs the class noise)")
+    parser.add_argument("--condition-first-excursions", action="store_true",
+                        help="the same first excursions drive the model's state but are out of the likelihood "
+                             "(NoiseOptions.first_excursion_conditioning)")
     parser.add_argument("--hop-to-the-hold", action="store_true",
                         help="one more MAP run from the hold mode the cycles' readings point at (FitOptions.hop_to_the_hold)")
     parser.add_argument("--effects", type=json.loads, default=None,
@@ -664,6 +677,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if args.first_excursion_class and not args.class_noise:
         parser.error("--first-excursion-class is a cycle class: it needs the class noise (drop --no-class-noise)")
+    if args.condition_first_excursions and args.first_excursion_class:
+        parser.error("--condition-first-excursions takes the first excursions out of the likelihood: "
+                     "--first-excursion-class would have nothing to weigh")
     return args
 
 

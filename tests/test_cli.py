@@ -152,6 +152,14 @@ def test_fit_passes_the_class_noise_option(tmp_path, monkeypatch, flag, on):
     assert seen is on
 
 
+def test_fit_passes_the_conditioning_option(tmp_path, monkeypatch):
+    import torsionfit.report as report_module
+
+    seen = _noise_seen(tmp_path, monkeypatch, report_module, "fit_campaign", "fit", ["--condition-first-excursions"],
+                       lambda n: (n.first_excursion_conditioning, n.first_excursion_class))
+    assert seen == (True, False)
+
+
 def test_command_line_is_quoted_as_a_shell_takes_it_back():
     assert command_line(["fit", "my campaign/campaign.toml", "--with", "kinematic_error=[1, 2]"]) == \
         "torsionfit fit 'my campaign/campaign.toml' --with 'kinematic_error=[1, 2]'"

@@ -169,6 +169,10 @@ def test_the_validation_fits_with_iid_noise_and_ar1_on_request():
     assert not mv.fit_options(mv.parse_args(["--no-class-noise"])).noise.cycle_class_noise  # ... or one
     assert mv._noise(mv.parse_args([])) == "iid-class" and mv._noise(mv.parse_args(["--ar1"])) == "ar1"
     assert mv._noise(mv.parse_args(["--no-class-noise"])) == "iid"
+    conditioned = mv.parse_args(["--condition-first-excursions"])
+    assert mv.fit_options(conditioned).noise.first_excursion_conditioning and mv._noise(conditioned) == "iid-class-conditioned"
+    with pytest.raises(SystemExit):
+        mv.parse_args(["--condition-first-excursions", "--first-excursion-class"])
 
     doc = json.loads((ROOT / "docs" / "measured" / "validation" / "validation.json").read_text())
     for noise, words in (("iid-class", "a level per cycle class"), ("iid", "iid noise with the posterior widened"),

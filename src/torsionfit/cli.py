@@ -130,7 +130,8 @@ def _cmd_fit(args) -> int:
     options = FitOptions(
         effects=_parse_effects(args.with_),
         noise=NoiseOptions(ar1=AR1[args.ar1], student_t_dof=args.student_t, cycle_class_noise=args.class_noise or args.first_excursion_class,
-                           first_excursion_class=args.first_excursion_class),
+                           first_excursion_class=args.first_excursion_class,
+                           first_excursion_conditioning=args.condition_first_excursions),
         sampler=args.sampler,
         n_walkers=args.walkers,
         max_steps=args.max_steps,
@@ -358,6 +359,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--first-excursion-class", action="store_true",
                    help="with the class noise (implied): the ramps that first load a run beyond its earlier peaks "
                         "(the first large ramp) a class of their own, the repeated ramps' level the largest class's")
+    p.add_argument("--condition-first-excursions", action="store_true",
+                   help="the same first excursions drive the model's state but are out of the likelihood "
+                        "(conditioning cycles); the samples left out go to fit.json")
     p.add_argument("--save-chain", action="store_true",
                    help="keep the chain in OUTPUT/chain.h5 (emcee) / OUTPUT/chain-nuts.npz (NUTS)")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from those files")

@@ -29,6 +29,9 @@ class BatchOptions:
         if self.fit.noise.cycle_class_noise:
             raise ValueError("BatchOptions: NoiseOptions.cycle_class_noise is not supported by the batch "
                              "(fit such units one at a time: torsionfit fit --class-noise)")
+        if self.fit.noise.first_excursion_conditioning:
+            raise ValueError("BatchOptions: NoiseOptions.first_excursion_conditioning is not supported by the batch "
+                             "(fit such units one at a time: torsionfit fit --condition-first-excursions)")
     seed: int = 0
     command: str | None = None  # the command line, recorded in the outputs (not a setting: a re-run keeps units)
 

@@ -145,6 +145,10 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
         # its screening fits would keep one level under the option's name (no refit there)
         raise ValueError("diagnose: NoiseOptions.cycle_class_noise is not supported; diagnose compares "
                          "fits with one noise level per run")
+    if options.noise.first_excursion_conditioning:
+        # its signatures read the residuals of every sample, the conditioning ones too
+        raise ValueError("diagnose: NoiseOptions.first_excursion_conditioning is not supported; diagnose reads "
+                         "the residuals of every sample")
     say = progress or (lambda text: None)
     effects = dict(options.initial_effects)
     say(f"fitting the base model ({', '.join(effects) or 'no extensions'})")

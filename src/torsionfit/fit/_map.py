@@ -91,10 +91,17 @@ def log_density(problem: FitProblem, u):
 @eqx.filter_jit
 def _noise_update(problem: FitProblem, u):
     """Closed-form noise update at u: ρ_r = the conditional MLE Σ e_t e_{t−1} / Σ e_{t−1}² of the
-    residuals (AR(1) runs), σ_r² = mean innovation², s_r² = σ_r² − floor_r² (kept positive)."""
+    residuals (AR(1) runs), σ_r² = mean innovation², s_r² = σ_r² − floor_r² (kept positive); over
+    the pairs of samples in the likelihood (``FitProblem.likelihood_keep``)."""
     # all runs at once (problem.sum_runs): sums over each run's pairs (e_{t-1}, e_t), t ≥ 1
     e = jnp.concatenate(problem.residuals(u))
     later = ~problem.first_samples()
+    n_pairs = np.asarray(problem.run_lengths) - 1.0
+    if problem.likelihood_keep is not None:
+        # pairs of two samples in the likelihood (the others' residuals do not enter)
+        keep = jnp.concatenate(problem.likelihood_keep)
+        later = later & keep & jnp.concatenate([jnp.zeros(1, bool), keep[:-1]])
+        n_pairs = jnp.maximum(problem.sum_runs(later.astype(e.dtype)), 1.0)
     prev = jnp.where(later, jnp.concatenate([jnp.zeros(1, e.dtype), e[:-1]]), 0.0)
     ar1 = np.asarray(problem.ar1)
     rho = jnp.zeros(problem.n_runs, e.dtype)
@@ -106,7 +113,6 @@ def _noise_update(problem: FitProblem, u):
         fit = jnp.clip(problem.sum_runs(e * prev) / jnp.maximum(problem.sum_runs(prev**2), 1e-300), 0.01, _RHO_CAP)
         rho = jnp.where(ar1, fit, 0.0)
     innov2 = jnp.where(later, (e - problem.per_sample(rho) * prev) ** 2, 0.0)
-    n_pairs = np.asarray(problem.run_lengths) - 1.0
     floor2 = problem.floors**2
     if problem.noise_shape is not None:
         # σ_i² = (s w_i)² + floor²: s² from the innovations above the floor, each over w_i²

@@ -30,8 +30,8 @@ def misfit_variance_ratio(problem, u, n_blocks: int = MISFIT_BLOCKS) -> np.ndarr
     (1 when the run is too short for ``n_blocks`` blocks of 2 samples)."""
     white = problem.split_runs(_laplace_parts(problem, jnp.asarray(u))[4][0])
     out = []
-    for w in white:
-        w = np.asarray(w, float)
+    for w, keep in zip(white, problem.kept_samples()):
+        w = np.asarray(w, float)[keep]  # the samples in the likelihood
         block = w.size // n_blocks
         if block < 2:
             out.append(1.0)
@@ -46,7 +46,7 @@ def misfit_inflation(problem, u, n_blocks: int = MISFIT_BLOCKS, alpha: float = M
     only when it exceeds what white residuals give with probability ``alpha`` (χ² of
     ``n_blocks − 1`` degrees of freedom), else 1."""
     ratios = misfit_variance_ratio(problem, u, n_blocks)
-    counts = np.array([len(y) for y in problem.y], float)
+    counts = np.array([np.sum(k) for k in problem.kept_samples()], float)
     ratio = float(np.sum(ratios * counts) / np.sum(counts))
     threshold = chi2.ppf(1.0 - alpha, n_blocks - 1) / (n_blocks - 1)
     return ratio if ratio > threshold else 1.0

@@ -25,6 +25,11 @@ from each other (the loop shakes down; ``scripts/measured_ramp_repeats.py``), an
 weighs it as a repeat bends the model of every later ramp towards it. With a level of its own,
 read from its residuals like the other classes', the fit weighs it by how well the model draws
 it; class 0, whose level predicts a new large ramp, is then the repeats'.
+
+**Conditioning** (``NoiseOptions.first_excursion_conditioning``): the same first excursions out
+of the likelihood altogether — they drive the model's state (friction, gap) and weigh nothing,
+the limit of their class's level going to infinity; a test procedure's preconditioning cycles,
+run before it records. A run without repeats of its largest cycles keeps them.
 """
 
 import equinox as eqx
@@ -125,6 +130,14 @@ def first_excursion_index(torque_Nm, min_samples: int = CLASS_MIN_SAMPLES) -> in
     return _split_first_excursions(torque_Nm, min_samples)[1]
 
 
+def conditioning_keep(torque_Nm, min_samples: int = CLASS_MIN_SAMPLES) -> np.ndarray:
+    """Per sample: False on the first excursions of the largest cycles when they are split off
+    (:func:`excursion_classes`: both they and the repeats have ``min_samples``), else True —
+    the samples a fit with ``NoiseOptions.first_excursion_conditioning`` keeps in its likelihood."""
+    classes, first = _split_first_excursions(torque_Nm, min_samples)
+    return np.ones(classes.size, dtype=bool) if first is None else classes != first
+
+
 def repeats_first(shape, classes, first: int | None) -> np.ndarray:
     """``shape`` with the first excursions' share (class ``first``) at least the repeats' (1): a
     first excursion is never weighed above the repeats. The plug-in levels weigh down whichever
@@ -138,13 +151,15 @@ def repeats_first(shape, classes, first: int | None) -> np.ndarray:
     return np.where(np.asarray(classes) == first, np.maximum(shape, 1.0), shape)
 
 
-def class_noise_shape(residual_rad, classes, floor_rad: float = 0.0) -> np.ndarray:
+def class_noise_shape(residual_rad, classes, floor_rad: float = 0.0, keep=None) -> np.ndarray:
     """Per sample: its class's noise level over the largest cycles' (class 0), from the mean
-    squared residual above the encoder floor in each class, clipped to :data:`CLASS_SHARE_RANGE`."""
+    squared residual above the encoder floor in each class (over the samples where ``keep``,
+    the likelihood's), clipped to :data:`CLASS_SHARE_RANGE`."""
     e2 = np.asarray(residual_rad, float) ** 2
     classes = np.asarray(classes, int)
-    level = np.array([max(np.mean(e2[classes == k]) - float(floor_rad) ** 2, 0.0) if np.any(classes == k) else 0.0
-                      for k in range(int(classes.max()) + 1)])
+    keep = np.ones(classes.size, dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
+    level = np.array([max(np.mean(e2[(classes == k) & keep]) - float(floor_rad) ** 2, 0.0)
+                      if np.any((classes == k) & keep) else 0.0 for k in range(int(classes.max()) + 1)])
     if not level[0] > 0:
         return np.ones(classes.size)
     share = np.clip(np.sqrt(level / level[0]), *CLASS_SHARE_RANGE)
@@ -181,8 +196,9 @@ def refit_with_class_noise(problem, map_result, iterations: int = CLASS_ITERATIO
               for inp in problem.inputs]
     for _ in range(iterations):
         residuals = _residuals(problem, jnp.asarray(map_result.u))
-        shape = [jnp.asarray(repeats_first(class_noise_shape(np.asarray(e), c, float(f)), c, k))
-                 for e, c, f, k in zip(residuals, classes, np.asarray(problem.floors), firsts)]
+        shape = [jnp.asarray(repeats_first(class_noise_shape(np.asarray(e), c, float(f), kept), c, k))
+                 for e, c, f, k, kept in zip(residuals, classes, np.asarray(problem.floors), firsts,
+                                             problem.kept_samples())]
         problem = eqx.tree_at(lambda p: p.noise_shape, problem, shape)
         map_result = fit_map(problem, map_result.run_names, n_starts=0, warm_starts=[map_result.u], **fit_map_kwargs)
     return problem, map_result

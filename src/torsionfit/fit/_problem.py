@@ -37,7 +37,7 @@ from ..io import Campaign, HysteresisRun
 from . import _transform as tr
 from .._segments import fit_ramps
 from ._denoise import denoise_torque
-from ._noise_classes import ramp_amplitudes
+from ._noise_classes import conditioning_keep, ramp_amplitudes
 from ._prior import build_priors
 from ._torque_error import angle_variance_from_torque_error
 
@@ -75,6 +75,11 @@ class NoiseOptions:
     # (the first large ramp after the play ramps) are a class of their own among the largest
     # cycles, whose level (class 0) is then the repeated ramps' (fit/_noise_classes.py)
     first_excursion_class: bool = False
+    # True: the first excursions of the largest cycles (the same ramps as first_excursion_class)
+    # drive the model's state but are out of the likelihood — conditioning cycles, as a test
+    # procedure runs before it records (FitProblem.likelihood_keep); kept when the run has no
+    # repeats of its largest cycles to fit instead
+    first_excursion_conditioning: bool = False
     # True: the denoised drive torque's error enters each hysteresis sample's variance as the
     # angle the *measured* loop branch moves across ±sd τ̂ (errors in variables, from the data:
     # fit/_torque_error.py). False: the angle noise alone (the latent torque knots stay).
@@ -210,6 +215,10 @@ class FitProblem(eqx.Module):
     likelihood_power: float = np.float64(1.0)  # a NumPy scalar: traced, one compile for every power
     # the cycle classes split the first excursions off (NoiseOptions.first_excursion_class)
     first_excursion_class: bool = eqx.field(static=True, default=False)
+    # per run: True where a sample is in the likelihood (None: every sample). The others still
+    # drive the model's state (friction, gap) but weigh nothing: their whitened residual is 0,
+    # their log density 0, and AR(1) whitening restarts after them
+    likelihood_keep: list | None = None
 
     # --- sizes -----------------------------------------------------------------------------
     @property
@@ -347,6 +356,33 @@ class FitProblem(eqx.Module):
         innov = jnp.concatenate([first, rest], axis=0)
         return innov / (scale[:, None] if jnp.ndim(scale) and innov.ndim == 2 else scale)
 
+    @staticmethod
+    def restarts(keep):
+        """(N,) True where AR(1) whitening restarts: the first sample of each kept stretch."""
+        return keep & jnp.concatenate([jnp.ones(1, bool), ~keep[:-1]])
+
+    @classmethod
+    def whiten_kept(cls, x, scale, rho, keep):
+        """:meth:`whiten` with the samples where ``keep`` is False out: 0 there, and the first
+        kept sample after them whitened as a run's first (their residuals do not enter)."""
+        col = (lambda v: v[:, None]) if x.ndim == 2 else (lambda v: v)  # noqa: E731
+        prev = jnp.concatenate([jnp.zeros_like(x[:1]), x[:-1]], axis=0)
+        innov = jnp.where(col(cls.restarts(keep)), x * jnp.sqrt(1.0 - rho**2), x - rho * prev)
+        innov = innov / (scale[:, None] if jnp.ndim(scale) and innov.ndim == 2 else scale)
+        return jnp.where(col(keep), innov, 0.0)
+
+    def whiten_run(self, r: int, x, scale, rho):
+        """Run r's residuals or design whitened, the samples out of the likelihood at 0."""
+        if self.likelihood_keep is None:
+            return self.whiten(x, scale, rho)
+        return self.whiten_kept(x, scale, rho, self.likelihood_keep[r])
+
+    def kept_samples(self) -> list[np.ndarray]:
+        """Per run: True where a sample is in the likelihood (NumPy)."""
+        if self.likelihood_keep is None:
+            return [np.ones(n, dtype=bool) for n in self.run_lengths]
+        return [np.asarray(k, dtype=bool) for k in self.likelihood_keep]
+
     # The likelihood is evaluated run by run: written over all runs' samples at once (each run's
     # σ_r, ρ_r spread over its samples) its program compiled faster for many runs, but the
     # log-density of one 10 001-sample loop under emcee's walkers ran a quarter slower (3.0 → 3.8
@@ -368,7 +404,7 @@ class FitProblem(eqx.Module):
         """The linear parameters' design of every run, whitened as the residuals, (N, n_linear);
         ``scales`` (N,) per sample, ``rho`` per run."""
         scales = self.split_runs(scales)
-        return jnp.concatenate([self.whiten(x, scales[r], rho[r]) for r, x in enumerate(self.design)], axis=0)
+        return jnp.concatenate([self.whiten_run(r, x, scales[r], rho[r]) for r, x in enumerate(self.design)], axis=0)
 
     def profile(self, u, return_scales: bool = False):
         """Solve the linear parameters for u: (whitened residuals per run, β, log det A[, scales
@@ -376,11 +412,11 @@ class FitProblem(eqx.Module):
         _, rho = self.noise_values(u)
         preds = self.nonlinear_prediction(u[:self.n_nonlinear])
         scales = self.sample_scales(u)
-        we = [self.whiten(y - f, scales[r], rho[r]) for r, (y, f) in enumerate(zip(self.y, preds))]
+        we = [self.whiten_run(r, y - f, scales[r], rho[r]) for r, (y, f) in enumerate(zip(self.y, preds))]
         if not self.n_linear:
             out = (we, jnp.zeros(0), jnp.asarray(0.0))
             return out + (scales,) if return_scales else out
-        wx = [self.whiten(x, scales[r], rho[r]) for r, x in enumerate(self.design)]
+        wx = [self.whiten_run(r, x, scales[r], rho[r]) for r, x in enumerate(self.design)]
         a = sum(w.T @ w for w in wx)
         b = sum(w.T @ v for w, v in zip(wx, we))
         a = a + 1e-10 * jnp.trace(a) / self.n_linear * jnp.eye(self.n_linear)
@@ -406,7 +442,12 @@ class FitProblem(eqx.Module):
             else:
                 ll = -0.5 * w**2 - 0.5 * jnp.log(2 * jnp.pi)
             ll = ll - jnp.log(scales[r])
-            out.append(ll.at[0].add(0.5 * jnp.log(1.0 - rho[r] ** 2)))
+            if self.likelihood_keep is None:
+                out.append(ll.at[0].add(0.5 * jnp.log(1.0 - rho[r] ** 2)))
+                continue
+            keep = self.likelihood_keep[r]
+            ll = ll + jnp.where(self.restarts(keep), 0.5 * jnp.log(1.0 - rho[r] ** 2), 0.0)
+            out.append(jnp.where(keep, ll, 0.0))
         return out
 
     def pointwise_log_likelihood(self, u):
@@ -532,6 +573,13 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
                          "noise level; choose one")
     if noise.first_excursion_class and not noise.cycle_class_noise:
         raise ValueError("NoiseOptions: first_excursion_class is a cycle class: it needs cycle_class_noise")
+    keep = None
+    if noise.first_excursion_conditioning:
+        if noise.first_excursion_class:
+            raise ValueError("NoiseOptions: first_excursion_conditioning takes the first excursions out of the "
+                             "likelihood; a noise class of their own (first_excursion_class) has nothing to weigh")
+        keep = [jnp.asarray(conditioning_keep(np.asarray(inp.torque_Nm)) if isinstance(inp, m.HysteresisInput)
+                            else np.ones(len(v), dtype=bool)) for inp, v in zip(inputs, y)]
     if noise.cycle_class_noise:
         # one level for now: the fit sets the class shares at its MAP (fit/_noise_classes.py)
         shape = [jnp.ones(len(run)) for run in campaign.runs]
@@ -546,5 +594,5 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
         inputs=inputs, y=y, eiv_var=[jnp.asarray(v) for v in eiv_var],
         design=design, knot_basis=bases, floors=jnp.asarray(np.full(len(y), floor)),
         prior_mean=jnp.asarray(prior_mean), prior_sd=jnp.asarray(prior_sd), noise_prior_mean=jnp.asarray(np.log(1e-2 * ranges)),
-        noise_shape=shape, first_excursion_class=noise.first_excursion_class,
+        noise_shape=shape, first_excursion_class=noise.first_excursion_class, likelihood_keep=keep,
     )

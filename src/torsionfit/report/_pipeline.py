@@ -541,6 +541,9 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     if options.noise.cycle_class_noise:
         # noise level of each cycle class over the largest cycles', per run (fit/_noise_classes.py)
         diagnostics["noise_class_shares"] = dict(zip(names, class_shares(problem)))
+    if problem.likelihood_keep is not None:
+        # samples that drove the model's state but were out of the likelihood, per run
+        diagnostics["conditioning_samples"] = {n: int(np.sum(~k)) for n, k in zip(names, problem.kept_samples())}
     if near_bound:
         diagnostics["noise_note"] = noise_note(near_bound)
 

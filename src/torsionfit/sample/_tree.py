@@ -39,7 +39,9 @@ Groups:
   noise (AR(1) with the draw's σ, ρ and the likelihood's per-sample scales; Student-t
   innovations when the likelihood is Student-t); the log-likelihood is the problem's
   per-sample density at the draw's (u, β) (AR(1) terms are conditional on the previous
-  sample, so PSIS-LOO leaves out one sample given the one before it).
+  sample, so PSIS-LOO leaves out one sample given the one before it). Samples out of the
+  likelihood (``NoiseOptions.first_excursion_conditioning``) are not in ``log_likelihood``:
+  its ``observation`` dim holds the others, named by the same coords.
 - ``constant_data`` (with ``campaign``): ``time`` (s), ``torque`` (N·m) and ``output_angle``
   (rad) on the same ``observation`` dim and coords, NaN where a run has no such column — a
   loop is re-plotted as ``observed_data.angle`` against ``constant_data.torque`` of one run.
@@ -438,6 +440,11 @@ def to_datatree(problem, sample_result: SampleResult, run_names, *, draws=None, 
     for g in ("posterior_predictive", "log_likelihood", "observed_data"):
         groups[g]["angle"].attrs.update(angle_attrs)
     groups["log_likelihood"]["angle"].attrs.update(units="1", description="log density of each sample given the draw")
+    if problem.likelihood_keep is not None:
+        # samples out of the likelihood (conditioning) have no density: LOO reads the others
+        # (their run / run_sample coords say which), where constant zeros would stop PSIS
+        groups["log_likelihood"] = groups["log_likelihood"].isel(
+            observation=np.flatnonzero(np.concatenate(problem.kept_samples())))
     if campaign is not None:
         groups["constant_data"] = arviz_base.dict_to_dataset(
             _constant_data(campaign, lengths), dims={k: ["observation"] for k in _CONSTANT_ATTRS}, sample_dims=[],
