@@ -85,14 +85,17 @@ def test_numbers(path: Path) -> list[int]:
     return [int(v) for v in dict.fromkeys(nr.tolist())]
 
 
-def manifest(unit: str, select: list[int] | None, folder: Path) -> Path:
+def manifest(unit: str, select: list[int] | None, folder: Path, condition: list[int] | None = None) -> Path:
     """A manifest for ``unit`` reading the whole file (``select`` None) or the given ramps:
-    the example manifest with its ``[runs.select]`` replaced, written to ``folder``."""
+    the example manifest with its ``[runs.select]`` replaced, written to ``folder``; the ramps
+    ``condition`` conditioning rows (``[runs.condition]``)."""
     text = (EXAMPLES / f"{unit}.toml").read_text()
     text = text.replace('file = "../../../shared/', f'file = "{ROOT.parent}/shared/')
     text = re.sub(r"\n\[runs\.select\].*\Z", "\n", text, flags=re.S)  # the last table of the examples
     if select is not None:
         text = text.rstrip() + f"\n\n[runs.select]\ntest_nr = {select}\n"
+    if condition:
+        text = text.rstrip() + f"\n\n[runs.condition]\ntest_nr = {condition}\n"
     out = folder / f"{unit}-{'all' if select is None else 'train'}.toml"
     out.write_text(text)
     return out
@@ -150,7 +153,9 @@ def validate(unit: str, folder: Path, args) -> dict:
     path = _data_path(unit)
     ramps = test_numbers(path)
     last = max(ramps)
-    train = load_campaign(manifest(unit, [r for r in ramps if r != last], folder))
+    # --condition-first-ramp: the first large ramp (test_nr ≥ 100) drives the state, unfitted
+    condition = [min(r for r in ramps if r >= 100)] if getattr(args, "condition_first_ramp", False) else None
+    train = load_campaign(manifest(unit, [r for r in ramps if r != last], folder, condition))
     whole = decimate(load_campaign(manifest(unit, None, folder)), args.decimate)
     t0 = time.perf_counter()
     options = fit_options(args, unit)
@@ -423,6 +428,9 @@ NOISE_TEXT = {
     "iid-conditioned": "iid noise, the ramps that first load the file beyond its earlier peaks conditioning only (they "
                        "drive the model's state, out of the likelihood) and the posterior widened for structure the "
                        "residuals keep",
+    "iid-class-ramp-conditioned": "iid noise with a level per cycle class (play ramps, stiffness ramps; their ratio read at "
+                                  "the MAP), the file's first large ramp conditioning rows (they drive the model's state, "
+                                  "out of the likelihood) and the posterior widened for structure the residuals keep",
     "iid-class-conditioned": "iid noise with a level per cycle class (play ramps, stiffness ramps; their ratio read at the MAP), "
                              "the ramps that first load the file beyond its earlier peaks conditioning only (they drive "
                              "the model's state, out of the likelihood) and the posterior widened for structure the "
@@ -437,6 +445,8 @@ def _noise(args) -> str:
     if args.class_noise:
         if getattr(args, "condition_first_excursions", False):
             return "iid-class-conditioned"
+        if getattr(args, "condition_first_ramp", False):
+            return "iid-class-ramp-conditioned"
         return "iid-class-first" if getattr(args, "first_excursion_class", False) else "iid-class"
     return "iid-conditioned" if getattr(args, "condition_first_excursions", False) else "iid"
 
@@ -657,6 +667,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--condition-first-excursions", action="store_true",
                         help="the same first excursions drive the model's state but are out of the likelihood "
                              "(NoiseOptions.first_excursion_conditioning)")
+    parser.add_argument("--condition-first-ramp", action="store_true",
+                        help="the file's first large ramp (test_nr 100) conditioning rows: it drives the model's state "
+                             "but is out of the likelihood ([runs.condition])")
     parser.add_argument("--hop-to-the-hold", action="store_true",
                         help="one more MAP run from the hold mode the cycles' readings point at (FitOptions.hop_to_the_hold)")
     parser.add_argument("--effects", type=json.loads, default=None,
@@ -677,6 +690,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if args.first_excursion_class and not args.class_noise:
         parser.error("--first-excursion-class is a cycle class: it needs the class noise (drop --no-class-noise)")
+    if args.condition_first_ramp and (args.condition_first_excursions or args.first_excursion_class or not args.class_noise):
+        parser.error("--condition-first-ramp is compared with the class noise alone (no --first-excursion-class, "
+                     "--condition-first-excursions or --no-class-noise)")
     if args.condition_first_excursions and args.first_excursion_class:
         parser.error("--condition-first-excursions takes the first excursions out of the likelihood: "
                      "--first-excursion-class would have nothing to weigh")

@@ -262,3 +262,27 @@ def test_a_conditioned_fit_reports_its_conditioning_samples_and_its_loo_reads_th
     assert tree["log_likelihood"]["angle"].shape[-1] == sum(int(np.sum(k)) for k in kept)
     assert tree["observed_data"]["angle"].shape[-1] == sum(len(r) for r in three.runs)
     assert np.isfinite(psis_loo(tree).elpd) and np.isfinite(psis_loo(tree, run=three.runs[0].name).elpd)
+
+
+def test_declared_conditioning_rows_are_the_option_by_hand(campaign):
+    """A run's conditioning rows ([runs.condition]) leave the likelihood as the option's first
+    excursions do: the same rows declared give the same kept samples and the same log density;
+    both together keep the samples neither leaves out."""
+    import jax.numpy as jnp
+
+    from torsionfit.fit._noise_classes import conditioning_keep
+
+    declared = dataclasses.replace(campaign, runs=tuple(
+        dataclasses.replace(r, conditioning=~conditioning_keep(r.torque_Nm)) for r in campaign.runs))
+    by_option = NoiseOptions(ar1=False, first_excursion_conditioning=True)
+    model = campaign_model(campaign, FitOptions(noise=by_option))
+    a = build_problem(campaign, model, by_option)
+    b = build_problem(declared, model, NoiseOptions(ar1=False))
+    assert all(np.array_equal(x, y) for x, y in zip(a.kept_samples(), b.kept_samples()))
+    assert not all(k.all() for k in a.kept_samples())
+    u = jnp.asarray(fit_map(b, [r.name for r in campaign.runs], n_starts=1, seed=0).u)
+    assert float(a.log_density(u)) == pytest.approx(float(b.log_density(u)), rel=1e-12)
+    first_rows = dataclasses.replace(campaign, runs=tuple(
+        dataclasses.replace(r, conditioning=np.arange(len(r)) < 20) for r in campaign.runs))
+    both = build_problem(first_rows, model, by_option).kept_samples()
+    assert all(np.array_equal(k, x & (np.arange(len(k)) >= 20)) for k, x in zip(both, a.kept_samples()))

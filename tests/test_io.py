@@ -644,3 +644,43 @@ def test_model_entry_points_name_the_missing_rated_torque(write_files, capsys, c
     code = main([command, str(path), "-o", str(path.parent / "out"), *extra])
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and "[reducer].rated_torque_Nm" in err, err
+
+
+# --- conditioning rows ---------------------------------------------------------------------------
+def _numbered_cycles(n=30):
+    """Three sine cycles to ±100 N·m, test_nr 1, 2, 3 (SYNTHETIC)."""
+    t = np.linspace(0.0, 3.0, 3 * n, endpoint=False)
+    torque = 100 * np.sin(2 * np.pi * t)
+    header = ("time_s", "torque_Nm", "angle_rad", "test_nr")
+    return csv_text(header, [t, torque, torque / 1e5, np.floor(t) + 1.0])
+
+
+def test_conditioning_rows_are_read_kept_and_carried(write_files, tmp_path):
+    """[runs.condition] marks rows (after [runs.select]); decimation carries the mark (a block
+    with a conditioning row is one) and write_campaign writes it back."""
+    from torsionfit.io import decimate, write_campaign
+
+    tail = "[runs.select]\ntest_nr = [2, 3]\n[runs.condition]\ntest_nr = [2]\n"
+    path = write_files({"campaign.toml": manifest(hyst_run(tail=tail)), "h.csv": _numbered_cycles()})
+    run = load_campaign(path).runs[0]
+    assert len(run) == 60 and run.conditioning.tolist() == [True] * 30 + [False] * 30
+    assert any("30 conditioning row(s)" in note for note in run.notes)
+    blocks = decimate(load_campaign(path), 4).runs[0].conditioning
+    assert blocks.tolist() == [True] * 8 + [False] * 7  # block 7 holds rows 28–31: two conditioning
+    again = load_campaign(write_campaign(load_campaign(path), tmp_path / "w")).runs[0]
+    assert again.conditioning.tolist() == run.conditioning.tolist()
+
+
+@pytest.mark.parametrize("rule, words", [("test_nr = [7]", "[runs.condition] test_nr in [7] matches no row"),
+                                          ("test_nr = [1, 2, 3]", "[runs.condition] matches every row")])
+def test_conditioning_rules_that_leave_nothing_to_fit_or_match_nothing_stop(write_files, rule, words):
+    tail = f"[runs.condition]\n{rule}\n"
+    path = write_files({"campaign.toml": manifest(hyst_run(tail=tail)), "h.csv": _numbered_cycles()})
+    message = load_error(path)
+    assert words in message and "h.csv" in message
+
+
+def test_a_te_run_has_no_conditioning_rows(write_files):
+    tail = "[runs.condition]\ntest_nr = [1]\n"
+    message = load_error(write_files({"campaign.toml": manifest(te_run(tail=tail)), "te.csv": te_csv()}))
+    assert "unknown key 'condition'" in message

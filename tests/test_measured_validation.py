@@ -45,6 +45,9 @@ def test_train_manifest_holds_out_the_last_large_ramp(tmp_path):
     # the held-out ramp is the end of the file: the fitted part is its beginning, so the
     # friction state the fit starts from is the whole file's
     np.testing.assert_array_equal(whole.runs[0].angle_rad[: len(train.runs[0])], train.runs[0].angle_rad)
+    # --condition-first-ramp: ramp 100 conditioning rows of the training record (REAL data)
+    conditioned = load_campaign(mv.manifest(unit, [r for r in ramps if r != max(ramps)], tmp_path, [100])).runs[0]
+    np.testing.assert_array_equal(conditioned.conditioning, nr[nr != max(ramps)] == 100)
 
 
 def test_block_reduction_matches_the_decimated_campaign(tmp_path):
@@ -171,6 +174,7 @@ def test_the_validation_fits_with_iid_noise_and_ar1_on_request():
     assert mv._noise(mv.parse_args(["--no-class-noise"])) == "iid"
     conditioned = mv.parse_args(["--condition-first-excursions"])
     assert mv.fit_options(conditioned).noise.first_excursion_conditioning and mv._noise(conditioned) == "iid-class-conditioned"
+    assert mv._noise(mv.parse_args(["--condition-first-ramp"])) == "iid-class-ramp-conditioned"
     with pytest.raises(SystemExit):
         mv.parse_args(["--condition-first-excursions", "--first-excursion-class"])
 

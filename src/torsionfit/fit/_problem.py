@@ -531,6 +531,26 @@ def _hat_basis(n: int, knots: np.ndarray) -> np.ndarray:
 
 
 @in_float64
+def _likelihood_keep(campaign: Campaign, inputs, first_excursions: bool) -> list | None:
+    """Per run: True on the samples in the likelihood — not the manifest's conditioning rows
+    (``[runs.condition]``), nor, with ``first_excursions``, the first excursions of the largest
+    cycles; None when every sample is in."""
+    if not first_excursions and all(getattr(r, "conditioning", None) is None for r in campaign.runs):
+        return None
+    keep = []
+    for run, inp in zip(campaign.runs, inputs):
+        k = np.ones(len(run), dtype=bool)
+        if isinstance(run, HysteresisRun):
+            if run.conditioning is not None:
+                k &= ~np.asarray(run.conditioning, dtype=bool)
+            if first_excursions:
+                k &= conditioning_keep(np.asarray(inp.torque_Nm))
+        if not k.any():
+            raise InputError(f"run {run.name!r}: every sample is conditioning; nothing is left to fit")
+        keep.append(jnp.asarray(k))
+    return keep
+
+
 def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOptions = NoiseOptions(),
                   latent_torque: bool = True) -> FitProblem:
     """The fitting problem for ``campaign`` under ``model``; InputError on unusable data."""
@@ -573,13 +593,10 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
                          "noise level; choose one")
     if noise.first_excursion_class and not noise.cycle_class_noise:
         raise ValueError("NoiseOptions: first_excursion_class is a cycle class: it needs cycle_class_noise")
-    keep = None
-    if noise.first_excursion_conditioning:
-        if noise.first_excursion_class:
-            raise ValueError("NoiseOptions: first_excursion_conditioning takes the first excursions out of the "
-                             "likelihood; a noise class of their own (first_excursion_class) has nothing to weigh")
-        keep = [jnp.asarray(conditioning_keep(np.asarray(inp.torque_Nm)) if isinstance(inp, m.HysteresisInput)
-                            else np.ones(len(v), dtype=bool)) for inp, v in zip(inputs, y)]
+    if noise.first_excursion_conditioning and noise.first_excursion_class:
+        raise ValueError("NoiseOptions: first_excursion_conditioning takes the first excursions out of the "
+                         "likelihood; a noise class of their own (first_excursion_class) has nothing to weigh")
+    keep = _likelihood_keep(campaign, inputs, noise.first_excursion_conditioning)
     if noise.cycle_class_noise:
         # one level for now: the fit sets the class shares at its MAP (fit/_noise_classes.py)
         shape = [jnp.ones(len(run)) for run in campaign.runs]

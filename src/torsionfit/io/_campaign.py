@@ -62,6 +62,9 @@ class HysteresisRun:
     nominal_temperature_C: float | None = None
     #: what reading changed (e.g. a dropped pad of non-finite rows), shown by ``metrics``
     notes: tuple[str, ...] = ()
+    #: per sample, True on a conditioning row (``[runs.condition]``): it drives the model's
+    #: state but is out of the fit's likelihood; None: none
+    conditioning: np.ndarray | None = None
     kind: str = field(default="hysteresis", init=False)
 
     def __len__(self) -> int:

@@ -32,7 +32,10 @@ def decimate(campaign: Campaign, factor: int) -> Campaign:
         if isinstance(run, HysteresisRun):
             runs.append(replace(run, time_s=_block_mean(run.time_s, factor), torque_Nm=_block_mean(run.torque_Nm, factor),
                                 angle_rad=_block_mean(run.angle_rad, factor),
-                                temperature_C=_block_mean(run.temperature_C, factor)))
+                                temperature_C=_block_mean(run.temperature_C, factor),
+                                # a block with a conditioning row is one (its mean carries it)
+                                conditioning=None if run.conditioning is None else
+                                _block_mean(np.asarray(run.conditioning, float), factor) > 0))
         else:
             assert isinstance(run, TransmissionErrorRun)
             # block means of an angle that wraps would be wrong: unwrap first

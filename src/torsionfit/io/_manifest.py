@@ -39,7 +39,7 @@ _INSTRUMENT_KEYS = (
 )
 _COMMON_RUN_KEYS = ("name", "kind", "file", "columns", "units", "select", "temperature_C")
 _RUN_KEYS = {
-    "hysteresis": _COMMON_RUN_KEYS + ("loading_rate_Nm_per_s", "peak_torque_Nm"),
+    "hysteresis": _COMMON_RUN_KEYS + ("loading_rate_Nm_per_s", "peak_torque_Nm", "condition"),
     "transmission_error": _COMMON_RUN_KEYS
     + ("speed_rpm", "input_speed_rpm", "torque_Nm", "direction", "te_convention", "zero_group"),
 }
@@ -227,6 +227,7 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str, reducer: Reduce
     if kind == "hysteresis":
         return RunSpec(
             **common,
+            condition=_select(entry, where, "condition"),
             loading_rate_Nm_per_s=_number(entry, "loading_rate_Nm_per_s", where, positive=True),
             peak_torque_Nm=_number(entry, "peak_torque_Nm", where, positive=True),
         )
@@ -286,11 +287,12 @@ def _unit_map(entry: dict, kind: str, columns: dict[str, str], where: str) -> di
     return unit_names
 
 
-def _select(entry: dict, where: str) -> dict:
-    """``[runs.select]``: file column → list of allowed values or ``{min, max}``."""
-    table = _table(entry, "select", where, required=False, section="[runs.select]")
+def _select(entry: dict, where: str, key: str = "select") -> dict:
+    """``[runs.select]`` (or ``[runs.condition]``, ``key``): file column → list of allowed values
+    or ``{min, max}``."""
+    table = _table(entry, key, where, required=False, section=f"[runs.{key}]")
     for column, rule in table.items():
-        at = f"{where}: [runs.select] {column}"
+        at = f"{where}: [runs.{key}] {column}"
         if isinstance(rule, dict):
             _check_keys(rule, ("min", "max"), at, "a range")
             if not rule:
@@ -357,6 +359,8 @@ def write_campaign(campaign: Campaign, directory, *, label=None, bench_file=None
                 "torque_Nm": run.torque_Nm,
                 "angle_arcmin": units.from_si(run.angle_rad, "angle", "arcmin"),
                 "temperature_C": run.temperature_C,
+                # conditioning rows: a column of their own, declared by [runs.condition] below
+                "conditioning": None if run.conditioning is None else np.asarray(run.conditioning, float),
             }
         elif isinstance(run, TransmissionErrorRun):
             direction = {1: "forward", -1: "backward"}[int(run.direction)]
@@ -374,6 +378,8 @@ def write_campaign(campaign: Campaign, directory, *, label=None, bench_file=None
             raise TypeError(f"run {run.name!r}: not a HysteresisRun or TransmissionErrorRun")
         lines += ["", "[[runs]]"]
         lines += _toml_pairs(name=run.name, kind=run.kind, file=file, **keys)
+        if isinstance(run, HysteresisRun) and run.conditioning is not None:
+            lines += ["[runs.condition]", "conditioning = [1]"]
         _write_csv(directory / file, columns, label)
 
     manifest = directory / MANIFEST_NAME

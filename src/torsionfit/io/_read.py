@@ -194,7 +194,7 @@ def drop_trailing_pad(table: Table, columns: list[str]) -> tuple[Table, int]:
 
 
 def describe_rule(column: str, rule) -> str:
-    """Human text of one ``[runs.select]`` rule."""
+    """Human text of one ``[runs.select]`` / ``[runs.condition]`` rule."""
     if isinstance(rule, dict):
         parts = []
         if "min" in rule:
@@ -212,9 +212,15 @@ def select_rows(table: Table, select: dict, where: str) -> Table:
     cell text) or a table ``{min = .., max = ..}`` (inclusive, either bound optional).
     The manifest reader has already checked the rules' types.
     """
+    return table.subset(rows_passing(table, select, where, "[runs.select]"))
+
+
+def rows_passing(table: Table, rules: dict, where: str, section: str) -> np.ndarray:
+    """(rows,) True where a row passes every rule (file column → rule, as ``[runs.select]``'s);
+    InputError when a rule, or all of them together, match no row."""
     keep = np.ones(len(table), dtype=bool)
-    for column, rule in select.items():
-        table.require(column, "from [runs.select]")
+    for column, rule in rules.items():
+        table.require(column, f"from {section}")
         numeric = isinstance(rule, dict) or all(not isinstance(v, str) for v in rule)
         if numeric:
             # a NaN or empty cell fails every rule: the row is dropped, not an error
@@ -235,14 +241,14 @@ def select_rows(table: Table, select: dict, where: str) -> Table:
             shown = ", ".join(_short(v) for v in present[:12])
             more = f", ... ({present.size} distinct)" if present.size > 12 else ""
             raise InputError(
-                f"{where}: [runs.select] {describe_rule(column, rule)} matches no row; "
+                f"{where}: {section} {describe_rule(column, rule)} matches no row; "
                 f"the column holds {shown}{more}"
             )
         keep &= passed
     if not keep.any():
-        rules = "; ".join(describe_rule(c, r) for c, r in select.items())
-        raise InputError(f"{where}: [runs.select] rules together keep no row ({rules})")
-    return table.subset(keep)
+        text = "; ".join(describe_rule(c, r) for c, r in rules.items())
+        raise InputError(f"{where}: {section} rules together match no row ({text})")
+    return keep
 
 
 def _short(value) -> str:

@@ -10,7 +10,7 @@ from .._errors import InputError
 from ._campaign import HysteresisRun, Reducer, TransmissionErrorRun
 from ._columns import resolve_columns
 from ._plausibility import check_encoder_step, check_hysteresis, check_te_direction
-from ._read import Table, drop_trailing_pad, read_table, select_rows
+from ._read import Table, drop_trailing_pad, read_table, rows_passing, select_rows
 
 #: fewest samples a run may have after selection
 MIN_SAMPLES = 10
@@ -31,6 +31,7 @@ class RunSpec:
     units: dict[str, str] = field(default_factory=dict)
     select: dict = field(default_factory=dict)
     # hysteresis
+    condition: dict = field(default_factory=dict)  # [runs.condition]: rules of the conditioning rows
     loading_rate_Nm_per_s: float | None = None
     peak_torque_Nm: float | None = None
     # transmission error
@@ -107,6 +108,14 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
     check_hysteresis(torque, angle, reducer.rated_torque_Nm, where, found["angle"].name,
                      found["angle"].unit, found["torque"].name)
     check_encoder_step(angle, spec.encoder_resolution_arcsec, where, found["angle"].name)
+    conditioning = None
+    if spec.condition:
+        conditioning = rows_passing(table, spec.condition, where, "[runs.condition]")
+        if conditioning.all():
+            raise InputError(f"{where}: [runs.condition] matches every row; conditioning rows drive the model's "
+                             f"state before the rows it fits, so some rows must be left to fit")
+        notes.append(f"{int(conditioning.sum())} conditioning row(s) ([runs.condition]): they drive the model's "
+                     f"state, out of the fit's likelihood")
     return HysteresisRun(
         name=spec.name,
         time_s=time,
@@ -118,6 +127,7 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
         peak_torque_Nm=spec.peak_torque_Nm,
         nominal_temperature_C=spec.temperature_C,
         notes=tuple(notes),
+        conditioning=conditioning,
     )
 
 
