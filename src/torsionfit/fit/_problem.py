@@ -530,7 +530,6 @@ def _hat_basis(n: int, knots: np.ndarray) -> np.ndarray:
     return np.stack([np.interp(idx, knots, eye[j]) for j in range(len(knots))], axis=1)
 
 
-@in_float64
 def _likelihood_keep(campaign: Campaign, inputs, first_excursions: bool) -> list | None:
     """Per run: True on the samples in the likelihood — not the manifest's conditioning rows
     (``[runs.condition]``), nor, with ``first_excursions``, the first excursions of the largest
@@ -551,6 +550,7 @@ def _likelihood_keep(campaign: Campaign, inputs, first_excursions: bool) -> list
     return keep
 
 
+@in_float64
 def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOptions = NoiseOptions(),
                   latent_torque: bool = True) -> FitProblem:
     """The fitting problem for ``campaign`` under ``model``; InputError on unusable data."""
