@@ -258,6 +258,10 @@ def test_a_conditioned_fit_reports_its_conditioning_samples_and_its_loo_reads_th
     kept = fit.problem.kept_samples()
     assert fit.diagnostics["conditioning_samples"] == {r.name: int(np.sum(~k)) for r, k in zip(three.runs, kept)}
     assert all(0 < n < len(r) // 2 for r, n in zip(three.runs, fit.diagnostics["conditioning_samples"].values()))
+    from torsionfit.report import fit_json, summary_table
+
+    line = [x for x in summary_table(fit_json(fit)).splitlines() if x.startswith("conditioning")]
+    assert line and all(f"{r.name} {n}" in line[0] for r, n in zip(three.runs, fit.diagnostics["conditioning_samples"].values()))
     tree = fit.tree
     assert tree["log_likelihood"]["angle"].shape[-1] == sum(int(np.sum(k)) for k in kept)
     assert tree["observed_data"]["angle"].shape[-1] == sum(len(r) for r in three.runs)

@@ -704,6 +704,10 @@ def summary_table(doc: dict) -> str:
         lines.append(f"sampler choice: {d['sampler_choice_reason']}")
     if d.get("noise_note"):
         lines.append(f"noise: {d['noise_note']}")
+    if d.get("conditioning_samples"):
+        # the RMSE below counts them; the likelihood does not
+        shown = ", ".join(f"{k} {v}" for k, v in d["conditioning_samples"].items())
+        lines.append(f"conditioning (out of the likelihood, in the RMSE): {shown} samples")
     if d.get("laplace_note"):
         lines.append(f"laplace: {d['laplace_note']}")
     if d.get("metrics_off_data_note"):
