@@ -85,6 +85,21 @@ def test_numbers(path: Path) -> list[int]:
     return [int(v) for v in dict.fromkeys(nr.tolist())]
 
 
+def select_units(names: list[str] | None) -> list[str]:
+    """The example manifests named (all 21 when None); a design's name (``split-pccf``) stands
+    for each of its units. SystemExit naming a name that matches none."""
+    every = sorted(p.stem for p in EXAMPLES.glob("*.toml"))
+    if not names:
+        return every
+    out = []
+    for name in names:
+        found = [u for u in every if u == name or u.startswith(name + "-")]
+        if not found:
+            raise SystemExit(f"--units: {name!r} is no example manifest nor design of one ({', '.join(every)})")
+        out += [u for u in found if u not in out]
+    return out
+
+
 def manifest(unit: str, select: list[int] | None, folder: Path, condition: list[int] | None = None) -> Path:
     """A manifest for ``unit`` reading the whole file (``select`` None) or the given ramps:
     the example manifest with its ``[runs.select]`` replaced, written to ``folder``; the ramps
@@ -639,7 +654,7 @@ def main(argv=None) -> int:
 def parse_args(argv=None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-o", "--output", type=Path, default=Path("out/validation"))
-    parser.add_argument("--units", nargs="*", help="example manifest names (default: all 21)")
+    parser.add_argument("--units", nargs="*", help="example manifest names or designs, e.g. split-pccf (default: all 21)")
     parser.add_argument("--sampler", choices=("auto", "emcee", "nuts", "laplace"), default="laplace")
     parser.add_argument("--laplace-shape", choices=("gaussian", "split"), default="split",
                         help="Laplace draws from a split normal measured along the Gaussian's axes (default) or the Gaussian")
@@ -725,7 +740,7 @@ def _main(args) -> int:
     if not DATA.is_dir():
         print(f"{DATA} is absent: nothing to validate")
         return 0
-    units = args.units or sorted(p.stem for p in EXAMPLES.glob("*.toml"))
+    units = select_units(args.units)
     args.output.mkdir(parents=True, exist_ok=True)
     kept = _kept_rows(args, units)  # checked before any fit
     with contextlib.ExitStack() as stack:

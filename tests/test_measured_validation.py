@@ -30,6 +30,15 @@ def test_authors_numbers_are_read_for_every_configuration():
     assert table["split-pccf-preload3"] == (0.121, 0.086, 0.095)
 
 
+def test_units_are_named_one_by_one_or_by_design():
+    split = mv.select_units(["split-pccf"])
+    assert len(split) == 15 and all(u.startswith("split-pccf-") for u in split)
+    assert mv.select_units(["baseline-pccf-initial-pos1", "split-pccf"])[0] == "baseline-pccf-initial-pos1"
+    assert len(mv.select_units(None)) == 21
+    with pytest.raises(SystemExit, match="'split-pccf-pos1'"):
+        mv.select_units(["split-pccf-pos1"])
+
+
 def test_train_manifest_holds_out_the_last_large_ramp(tmp_path):
     from torsionfit.io import load_campaign
 
