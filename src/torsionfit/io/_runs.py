@@ -112,8 +112,8 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
     if spec.condition:
         conditioning = rows_passing(table, spec.condition, where, "[runs.condition]")
         if conditioning.all():
-            raise InputError(f"{where}: [runs.condition] matches every row; conditioning rows drive the model's "
-                             f"state before the rows it fits, so some rows must be left to fit")
+            raise InputError(f"{where}: [runs.condition] matches every row; conditioning rows only drive the "
+                             f"model's state, so some rows must be left to fit")
         notes.append(f"{int(conditioning.sum())} conditioning row(s) ([runs.condition]): they drive the model's "
                      f"state, out of the fit's likelihood")
     return HysteresisRun(
