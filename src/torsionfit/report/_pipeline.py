@@ -71,9 +71,11 @@ class FitOptions:
     # (long-run variance ratio k > 1 at the MAP: likelihood to the power 1/k, fit/_misfit.py)
     misfit_inflation: bool = True
     # LM step budget of every MAP pass: a measured loop's long ridges need more than diagnose's
-    # screening fits get (fit_map's default, 300). One budget for the first and the later passes:
-    # the budget is part of the compiled solve, and two budgets compiled it twice
-    map_steps: int = 1000
+    # screening fits get (fit_map's default, 300) — a preloaded measured loop (split preload 2,
+    # position 1) met the tolerance between 1000 and 3000 steps. A fit that converges sooner stops
+    # sooner: the budget costs only the fits that need it. One budget for the first and the later
+    # passes: the budget is part of the compiled solve, and two budgets compiled it twice
+    map_steps: int = 3000
     # one more LM run from the MAP of a model with a held gap, from the hold mode the cycles'
     # readings point at (:func:`hop_to_the_hold`); measured on the 21 measured loops, an option
     hop_to_the_hold: bool = False
