@@ -62,7 +62,7 @@ from torsionfit.units import ANGLE_UNITS
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "cycloidal-jv"
 EXAMPLES = ROOT / "examples" / "cycloidal-jv"
-sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path[:0] = [str(ROOT / "benchmarks"), str(ROOT / "scripts")]  # the reference fits; measured_metrics.py
 ARCSEC = ANGLE_UNITS["arcsec"]
 DEG = ANGLE_UNITS["deg"]
 EFFECTS = {"load_dependent_friction": {"lag": True}, "distributed_friction": True, "stiffness_nonlinearity": "power_law",
@@ -85,27 +85,74 @@ def test_numbers(path: Path) -> list[int]:
     return [int(v) for v in dict.fromkeys(nr.tolist())]
 
 
+def measured_files(data: Path | None = None) -> dict[str, Path]:
+    """Every measured loop in the data folder (``DATA`` when None), by unit name
+    ``<design>-<state>-<position>``: ``<design>/<state>-<position>.csv.gz`` (or ``.csv``), the
+    layout of the data's README. A file of a configuration without an example manifest is
+    validated too, read by :func:`generated_manifest_text`."""
+    return {f"{path.parent.name}-{_stem(path)}": path for path in _data_files(data) if _stem(path).count("-") == 1}
+
+
+def _data_files(data: Path | None = None) -> list[Path]:
+    return sorted(p for p in (DATA if data is None else data).glob("*/*") if p.name.endswith((".csv", ".csv.gz")))
+
+
+def _stem(path: Path) -> str:
+    return path.name.removesuffix(".gz").removesuffix(".csv")
+
+
+def files_out_of_layout(data: Path | None = None) -> list[Path]:
+    """Measured files in the data folder not named ``<state>-<position>``: not validated (the
+    run says so, naming them)."""
+    return [p for p in _data_files(data) if _stem(p).count("-") != 1]
+
+
 def select_units(names: list[str] | None) -> list[str]:
-    """The example manifests named (all 21 when None); a design's name (``split-pccf``) stands
-    for each of its units. SystemExit naming a name that matches none."""
-    every = sorted(p.stem for p in EXAMPLES.glob("*.toml"))
+    """The units named (every example manifest and every measured file found in the data folder
+    when None); a design's name (``split-pccf``) stands for each of its units. SystemExit naming
+    a name that matches none."""
+    every = sorted({p.stem for p in EXAMPLES.glob("*.toml")} | set(measured_files()))
     if not names:
         return every
     out = []
     for name in names:
         found = [u for u in every if u == name or u.startswith(name + "-")]
         if not found:
-            raise SystemExit(f"--units: {name!r} is no example manifest nor design of one ({', '.join(every)})")
+            raise SystemExit(f"--units: {name!r} is no example manifest, measured file nor design of one ({', '.join(every)})")
         out += [u for u in found if u not in out]
     return out
+
+
+def generated_manifest_text(unit: str, path: Path) -> str:
+    """The manifest of ``unit``'s measured file ``path`` when it has no example manifest: the data
+    README's format as scripts/measured_metrics.py reads it (TIME s, TORQUE N·m from motor
+    current, POSITION output revolutions, encoder steps of 2^-16 rev — the reader checks the
+    declared step against the column's own), with the examples' assumed rating of 20 N·m, which
+    the fit's priors read."""
+    from measured_metrics import CREDIT, MANIFEST
+
+    design, stem = unit.rsplit("-", 2)[0], path.name.removesuffix(".gz").removesuffix(".csv")
+    text = MANIFEST.format(folder=design, stem=stem, credit=CREDIT, file=json.dumps(path.as_posix()))
+    return text.replace("[reducer]\n", "[reducer]\nrated_torque_Nm = 20.0  # assumed, as in the example manifests\n", 1)
+
+
+def _manifest_text(unit: str) -> str:
+    """The example manifest of ``unit`` with the data path resolved on this machine, else the
+    generated one of its measured file."""
+    example = EXAMPLES / f"{unit}.toml"
+    if example.is_file():
+        return example.read_text().replace('file = "../../../shared/', f'file = "{ROOT.parent}/shared/')
+    files = measured_files()
+    if unit not in files:
+        raise SystemExit(f"{unit}: no example manifest ({example}) and no measured file under {DATA}")
+    return generated_manifest_text(unit, files[unit])
 
 
 def manifest(unit: str, select: list[int] | None, folder: Path, condition: list[int] | None = None) -> Path:
     """A manifest for ``unit`` reading the whole file (``select`` None) or the given ramps:
     the example manifest with its ``[runs.select]`` replaced, written to ``folder``; the ramps
     ``condition`` conditioning rows (``[runs.condition]``)."""
-    text = (EXAMPLES / f"{unit}.toml").read_text()
-    text = text.replace('file = "../../../shared/', f'file = "{ROOT.parent}/shared/')
+    text = _manifest_text(unit)
     text = re.sub(r"\n\[runs\.select\].*\Z", "\n", text, flags=re.S)  # the last table of the examples
     if select is not None:
         text = text.rstrip() + f"\n\n[runs.select]\ntest_nr = {select}\n"
@@ -139,16 +186,26 @@ def _hdi(x, prob=0.95):
 
 
 def _data_path(unit: str) -> Path:
-    """The measured file of an example manifest."""
-    return Path(re.search(r'file = "([^"]+)"', (EXAMPLES / f"{unit}.toml").read_text()).group(1).replace("../../../shared/", f"{ROOT.parent}/shared/"))
+    """The measured file of ``unit`` (its example manifest's, else the one found in the data folder)."""
+    return Path(re.search(r'file = "([^"]+)"', _manifest_text(unit)).group(1))
+
+
+def design_effects(design: str) -> dict:
+    """The model of ``design``: :data:`DESIGN_EFFECTS`'s entry, else that of a listed design of
+    the same construction in another material (the name before the material: ``split-pla`` is
+    the split pinwheel, preloaded as ``split-pccf`` is), else :data:`EFFECTS`."""
+    if design in DESIGN_EFFECTS:
+        return DESIGN_EFFECTS[design]
+    construction = design.split("-")[0]
+    return next((e for d, e in DESIGN_EFFECTS.items() if d.split("-")[0] == construction), EFFECTS)
 
 
 def effects_for(unit: str | None, args) -> dict:
     """The model's effects for ``unit``: ``--effects`` when given, else its design's
-    (:data:`DESIGN_EFFECTS`, by the unit name's prefix) or :data:`EFFECTS`."""
+    (:func:`design_effects`, by the unit name's prefix) or :data:`EFFECTS`."""
     if args.effects is not None:
         return args.effects
-    return DESIGN_EFFECTS.get(_design(unit), EFFECTS) if unit else EFFECTS
+    return design_effects(_design(unit)) if unit else EFFECTS
 
 
 def fit_options(args, unit: str | None = None) -> FitOptions:
@@ -476,7 +533,7 @@ def posterior_text(sampler: str, laplace_shape: str) -> str:
 
 def _design(unit: str) -> str:
     """A unit's design: its name before the unit state and position (``split-pccf``)."""
-    return "-".join(unit.split("-")[:2])
+    return unit.rsplit("-", 2)[0]
 
 
 def model_text(rows: list[dict], effects: dict) -> str:
@@ -587,11 +644,12 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
     lines += ["", "Per configuration, positions averaged like the data's authors (their numbers from the data's README):", "",
               "| configuration | play authors (deg) | play data | play model (95 % HDI) | compliance authors (deg/N·m) | compliance data (± s.e.) | authors − data (in s.e.) | compliance model (95 % HDI) | authors' play in model HDI | authors' compliance in model HDI | data's compliance in model HDI |",
               "| --- | ---: | ---: | --- | ---: | ---: | ---: | --- | --- | --- | --- |"]
-    checks, gaps = [], []
+    checks, gaps, missing = [], [], []
     for config in dict.fromkeys(_config(r["unit"]) for r in rows):
         group = [r for r in rows if _config(r["unit"]) == config]
         a = authors.get(config)
         if not a:
+            missing.append(config)
             continue
         a_play, a_comp = a[0], 0.5 * (a[1] + a[2])
         d_play = np.mean([r["play_data_deg"] for r in group])
@@ -628,6 +686,8 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
         d_c = f"{d_comp:.4f}" + (f" ± {d_se:.4f}" if d_se else "") + f" ({100 * (d_comp / a_comp - 1):+.0f} %)"
         lines.append(f"| {config} | {a_play:.3f} | {d_play:.3f} ({100 * (d_play / a_play - 1):+.0f} %) | {model_p} | {a_comp:.4f} | "
                      f"{d_c} | {'n/a' if z is None else f'{z:+.1f}'} | {model_c} | {in_p} | {in_c} | {in_d} |")
+    if missing:
+        lines += ["", f"Not in this table, the data's README has no numbers of the authors for them: {', '.join(missing)}."]
     if checks:
         c = np.array(checks)
         lines += ["", f"Of {len(c)} configurations: data-only play within 10 % of the authors' on {c[:, 0].sum()}, loading "
@@ -741,6 +801,9 @@ def _main(args) -> int:
         print(f"{DATA} is absent: nothing to validate")
         return 0
     units = select_units(args.units)
+    for path in files_out_of_layout():
+        print(f"{path}: not validated (a measured file is named <state>-<position>.csv.gz, as the data's README lays out)",
+              file=sys.stderr)
     args.output.mkdir(parents=True, exist_ok=True)
     kept = _kept_rows(args, units)  # checked before any fit
     with contextlib.ExitStack() as stack:

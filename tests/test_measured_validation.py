@@ -39,6 +39,47 @@ def test_units_are_named_one_by_one_or_by_design():
         mv.select_units(["split-pccf-pos1"])
 
 
+def test_measured_files_without_an_example_manifest_are_validated_too(tmp_path, monkeypatch):
+    """A configuration the examples do not name (another material, a file added to the data
+    folder) is found, read by a generated manifest of the data README's format — the same
+    record the example manifest reads from the same file — and fitted with its construction's
+    model; a file not named <state>-<position> is named on stderr, not silently dropped. The
+    folder is a copy made in tmp of one REAL file (never in the repository)."""
+    import shutil
+
+    from torsionfit.io import load_campaign
+
+    source = DATA / "split-pccf" / "preload3-pos1.csv.gz"
+    for name in ("split-pla/initial-pos1.csv.gz", "baseline-pla/runin-pos5.csv.gz", "split-pla/notes.csv.gz"):
+        (tmp_path / "data" / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(source, tmp_path / "data" / name)
+    monkeypatch.setattr(mv, "DATA", tmp_path / "data")
+    units = mv.select_units(None)
+    assert {"split-pla-initial-pos1", "baseline-pla-runin-pos5", "split-pccf-preload3-pos1"} <= set(units)
+    assert len(units) == 23 and mv.select_units(["split-pla"]) == ["split-pla-initial-pos1"]
+    assert mv.files_out_of_layout() == [tmp_path / "data" / "split-pla" / "notes.csv.gz"]
+    assert mv._data_path("split-pla-initial-pos1") == tmp_path / "data" / "split-pla" / "initial-pos1.csv.gz"
+    generated = load_campaign(mv.manifest("split-pla-initial-pos1", None, tmp_path)).runs[0]
+    example = load_campaign(mv.manifest("split-pccf-preload3-pos1", None, tmp_path)).runs[0]
+    assert generated.name == "initial-pos1"
+    np.testing.assert_array_equal(generated.angle_rad, example.angle_rad)
+    np.testing.assert_array_equal(generated.torque_Nm, example.torque_Nm)
+    args = mv.parse_args([])
+    assert mv.fit_options(args, "split-pla-initial-pos1").effects == mv.DESIGN_EFFECTS["split-pccf"]
+    assert mv.fit_options(args, "baseline-pla-runin-pos5").effects == mv.EFFECTS
+    assert mv._config("split-pla-initial-pos1") == "split-pla-initial" and mv._design("split-pla-initial-pos1") == "split-pla"
+    with pytest.raises(SystemExit, match="split-pla-initial-pos9: no example manifest"):
+        mv.manifest("split-pla-initial-pos9", None, tmp_path)
+
+
+def test_a_configuration_without_the_authors_numbers_is_named_not_dropped():
+    doc = json.loads((ROOT / "docs" / "measured" / "validation" / "validation.json").read_text())
+    rows = [dict(r, unit=r["unit"].replace("split-pccf", "split-pla")) if "preload3" in r["unit"] else r for r in doc["units"]]
+    text = mv.markdown(rows, doc["decimate"], doc["sampler"], doc["effects"], doc["noise"], doc["laplace_shape"])
+    assert "the data's README has no numbers of the authors for them: split-pla-preload3." in text
+    assert "| split-pla-preload3 |" not in text and "| split-pccf-preload2 |" in text
+
+
 def test_train_manifest_holds_out_the_last_large_ramp(tmp_path):
     from torsionfit.io import load_campaign
 
