@@ -26,7 +26,6 @@ from torsionfit.metrics._hysteresis import grouped_cycles
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "cycloidal-jv"
-POSITIONS = ("pos1", "pos5", "pos6")
 #: the goal: data-only play and stiffness_loading within this relative difference of the authors'
 TOLERANCE = 0.10
 CREDIT = (
@@ -90,14 +89,23 @@ def file_metrics(folder: str, stem: str, workdir: Path) -> dict:
     return run
 
 
+def positions(folder: str, state: str, data: Path = DATA) -> list[str]:
+    """The rotor positions measured for ``folder``/``state``: its files ``<state>-<position>.csv.gz``;
+    SystemExit naming the folder when there is none (the README names a configuration the data lacks)."""
+    found = sorted(p.name.removesuffix(".csv.gz").split("-", 1)[1] for p in (data / folder).glob(f"{state}-*.csv.gz"))
+    if not found:
+        raise SystemExit(f"{data / folder}: no file {state}-<position>.csv.gz for the README's configuration {folder} / {state}")
+    return found
+
+
 def measure(configurations) -> dict[tuple[str, str], dict]:
-    """Per configuration: the three positions' runs and their averages (play in deg, + and −
-    compliances in deg/N·m averaged separately, their mean and the loading stiffness
-    1/mean in N·m/arcmin)."""
+    """Per configuration: the runs of its positions (every file measured: pos1, pos5, pos6 here)
+    and their averages (play in deg, + and − compliances in deg/N·m averaged separately, their
+    mean and the loading stiffness 1/mean in N·m/arcmin)."""
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
         for folder, state in configurations:
-            runs = {pos: file_metrics(folder, f"{state}-{pos}", Path(tmp)) for pos in POSITIONS}
+            runs = {pos: file_metrics(folder, f"{state}-{pos}", Path(tmp)) for pos in positions(folder, state)}
             row = {"runs": runs, "notes": {}}
             for key, metric, scale in (
                 ("play_deg", "play", 1 / 60.0),
@@ -161,13 +169,14 @@ def markdown(rows: list[dict]) -> str:
         "",
         CREDIT,
         "",
-        "Made by `scripts/measured_metrics.py`: each of the 21 files of `shared/data/cycloidal-jv` is one "
+        f"Made by `scripts/measured_metrics.py`: each of the {sum(len(r['ours']['runs']) for r in rows)} files of "
+        "`shared/data/cycloidal-jv` is one "
         "whole-file run (play ramps and stiffness ramps together), no rated torque given. "
         "`play` is the loop width at zero torque of the smallest cycles (the ±4 N·m play ramps); "
         "`stiffness_loading` is 1 / mean of the + and − loading-branch compliances of the largest "
         "cycles (the ±25 or ±40 N·m stiffness ramps), each a least-squares slope of angle on torque from "
         "where the branch is past half the play (from the loop midpoint at zero torque) to 90 % of the "
-        "peak. Positions pos1, pos5 and pos6 are averaged as the authors do: the play, and the + and − "
+        "peak. The positions (pos1, pos5 and pos6) are averaged as the authors do: the play, and the + and − "
         "compliances separately. Authors' numbers: the table of the data README. "
         f"Goal: within {100 * TOLERANCE:.0f} %.",
         "",
@@ -227,7 +236,7 @@ def markdown(rows: list[dict]) -> str:
     missed = [r["configuration"] for r in rows if not (r["play_ok"] and r["stiffness_ok"])]
     lines += [
         "",
-        ("All 7 configurations are within the goal." if not missed
+        (f"All {len(rows)} configurations are within the goal." if not missed
          else "Outside the goal: " + ", ".join(missed) + "."),
     ]
     return "\n".join(lines) + "\n"
