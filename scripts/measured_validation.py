@@ -107,6 +107,21 @@ def files_out_of_layout(data: Path | None = None) -> list[Path]:
     return [p for p in _data_files(data) if _stem(p).count("-") != 1]
 
 
+def not_validated(unit: str) -> str | None:
+    """Why ``unit``'s file cannot be validated, in one line naming it (None: it can): the split
+    reads the ``test_nr`` column and needs two large ramps (test_nr ≥ 100), the last to hold
+    out and one to fit the large cycles on."""
+    path = _data_path(unit)
+    try:
+        large = [r for r in test_numbers(path) if r >= 100]
+    except ValueError as err:  # csv header without one of the README's columns
+        return f"{path}: {err}; expected the data README's columns TIME, POSITION, TORQUE and test_nr"
+    if len(large) < 2:
+        return (f"{path}: {len(large)} large ramp(s) (test_nr ≥ 100), expected at least 2: one to fit, the last to "
+                f"hold out")
+    return None
+
+
 def select_units(names: list[str] | None) -> list[str]:
     """The units named (every example manifest and every measured file found in the data folder
     when None); a design's name (``split-pccf``) stands for each of its units. SystemExit naming
@@ -804,6 +819,10 @@ def _main(args) -> int:
     for path in files_out_of_layout():
         print(f"{path}: not validated (a measured file is named <state>-<position>.csv.gz, as the data's README lays out)",
               file=sys.stderr)
+    reasons = {unit: not_validated(unit) for unit in units}
+    for reason in filter(None, reasons.values()):
+        print(f"not validated: {reason}", file=sys.stderr)
+    units = [unit for unit in units if reasons[unit] is None]
     args.output.mkdir(parents=True, exist_ok=True)
     kept = _kept_rows(args, units)  # checked before any fit
     with contextlib.ExitStack() as stack:

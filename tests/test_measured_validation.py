@@ -71,6 +71,21 @@ def test_measured_files_without_an_example_manifest_are_validated_too(tmp_path, 
     assert mv._config("split-pla-initial-pos1") == "split-pla-initial" and mv._design("split-pla-initial-pos1") == "split-pla"
     with pytest.raises(SystemExit, match="split-pla-initial-pos9: no example manifest"):
         mv.manifest("split-pla-initial-pos9", None, tmp_path)
+    assert mv.not_validated("split-pla-initial-pos1") is None
+    # a file with one large ramp, and one without the ramp index: each stops in one line naming it
+    import gzip
+
+    with gzip.open(source, "rt") as fh:
+        lines = fh.read().splitlines()
+    col = lines[0].split(",").index("test_nr")
+    one_large = [lines[0]] + [ln for ln in lines[1:] if int(float(ln.split(",")[col])) <= 100]
+    (tmp_path / "data" / "split-pla" / "runin-pos1.csv").write_text("\n".join(one_large) + "\n")
+    (tmp_path / "data" / "split-pla" / "runin-pos5.csv").write_text("\n".join(lines[:50]).replace("test_nr", "ramp") + "\n")
+    assert mv.not_validated("split-pla-runin-pos1") == (
+        f"{tmp_path / 'data' / 'split-pla' / 'runin-pos1.csv'}: 1 large ramp(s) (test_nr ≥ 100), expected at least 2: "
+        "one to fit, the last to hold out")
+    reason = mv.not_validated("split-pla-runin-pos5")
+    assert reason.startswith(f"{tmp_path / 'data' / 'split-pla' / 'runin-pos5.csv'}: ") and "test_nr" in reason
 
 
 def test_a_configuration_without_the_authors_numbers_is_named_not_dropped():
