@@ -183,3 +183,21 @@ def test_the_newton_step_says_how_far_a_point_is_from_the_optimum(problem):
     assert short.newton_step_sd == pytest.approx(_map.newton_step(problem, short.u)[0])
     assert f"the Gauss–Newton step from there is {short.newton_step_sd:.2g} posterior sd" in short.message
     assert "\n" not in short.message
+
+
+def test_a_map_stopped_at_its_budget_continues_from_where_it_stopped(problem):
+    """``continuations``: a solve that ends at its step budget short of the tolerance takes more
+    passes of the same budget from where it stopped, until it meets the tolerance, at an optimum
+    (each pass re-reads the noise level, as the noise passes do); one that converged takes none
+    (it is unchanged)."""
+    full = fit_map(problem, n_starts=1, seed=0, noise_passes=1)
+    short = fit_map(problem, n_starts=1, seed=0, max_steps=3, noise_passes=1)
+    assert full.converged and not short.converged
+    continued = fit_map(problem, n_starts=1, seed=0, max_steps=3, noise_passes=1, continuations=200)
+    assert continued.converged and continued.newton_step_sd is None and continued.message == "successful"
+    assert continued.log_density >= short.log_density
+    # at an optimum of physics and noise together: one pass (LM, then the noise re-read) leaves
+    # the physics 1.8 posterior sd from the optimum the re-read noise has; the passes close that
+    assert _map.newton_step(problem, continued.u)[0] < 0.1 < _map.newton_step(problem, full.u)[0]
+    again = fit_map(problem, n_starts=1, seed=0, noise_passes=1, continuations=5)
+    np.testing.assert_array_equal(again.u, full.u)

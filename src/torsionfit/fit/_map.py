@@ -363,7 +363,7 @@ def same_optimum(firsts) -> list[int]:
 @in_float64
 def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int = 0,
             max_steps: int = 300, noise_passes: int = 3, rtol: float = 1e-8,
-            atol: float = 1e-10, warm_starts=None, polish_steps: int = 300) -> MapResult:
+            atol: float = 1e-10, warm_starts=None, polish_steps: int = 300, continuations: int = 0) -> MapResult:
     """MAP by Levenberg–Marquardt from ``n_starts`` starts (the prior centre, then draws around
     it; 0: the warm starts alone). The first pass treats the noise as iid (with ρ near 1 the whitened residuals are
     increments, and a fit from far away can match the loop's shape but not its level);
@@ -376,7 +376,10 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     from near an optimum for the distinct optima only: on a long ridge (the compliance curve's
     scale and exponent of a measured loop) LM may need more there (``fit_campaign`` gives
     :attr:`FitOptions.map_steps` for both; diagnose's screening fits keep these defaults). Each
-    budget is part of a compiled program: equal budgets compile the solve once."""
+    budget is part of a compiled program: equal budgets compile the solve once. ``continuations``:
+    where the chosen optimum's last pass ended at its budget without meeting the tolerance, up to
+    this many more passes from where it stopped, with the same budget (the same compiled
+    program): the step budget grows only for the fit that needs it."""
     if noise_passes < 1:
         raise ValueError(f"noise_passes must be at least 1, got {noise_passes}")
     if n_starts < 1 and warm_starts is None:
@@ -398,6 +401,15 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
                      bool(result == optx.RESULTS.successful), _message(result))
     us, lds, oks, messages = zip(*(finals[r] for r in rep))
     u, ld, ok, message = best_start(us, lds, oks, messages)
+    n = problem.n_nonlinear
+    for _ in range(continuations if not ok else 0):
+        u_phys, u_noise, result, pass_ld = _solve_pass(problem, u[:n], u[n:], solver, polish_steps)
+        if not np.isfinite(float(pass_ld)):
+            break  # keep the finite point it started from
+        u, ld = np.concatenate([np.asarray(u_phys), np.asarray(u_noise)]), float(pass_ld)
+        ok, message = bool(result == optx.RESULTS.successful), _message(result)
+        if ok:
+            break
     step_sd = None
     if not ok:
         step_sd, message = stopped_short(problem, run_names, u, message)

@@ -71,11 +71,14 @@ class FitOptions:
     # (long-run variance ratio k > 1 at the MAP: likelihood to the power 1/k, fit/_misfit.py)
     misfit_inflation: bool = True
     # LM step budget of every MAP pass: a measured loop's long ridges need more than diagnose's
-    # screening fits get (fit_map's default, 300) — a preloaded measured loop (split preload 2,
-    # position 1) met the tolerance between 1000 and 3000 steps. A fit that converges sooner stops
-    # sooner: the budget costs only the fits that need it. One budget for the first and the later
-    # passes: the budget is part of the compiled solve, and two budgets compiled it twice
-    map_steps: int = 3000
+    # screening fits get (fit_map's default, 300). One budget for the first and the later passes:
+    # the budget is part of the compiled solve, and two budgets compiled it twice
+    map_steps: int = 1000
+    # passes of map_steps more for a MAP whose last pass stopped at its budget short of the
+    # tolerance (fit_map's ``continuations``): a preloaded measured loop (split preload 2,
+    # position 1) met it between 1000 and 3000 steps. A budget of 3000 for every pass tripled the
+    # first passes from far starts on the baseline loops; continuing costs only the fit that needs it
+    map_continuations: int = 2
     # one more LM run from the MAP of a model with a held gap, from the hold mode the cycles'
     # readings point at (:func:`hop_to_the_hold`); measured on the 21 measured loops, an option
     hop_to_the_hold: bool = False
@@ -198,7 +201,7 @@ def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
     names = [r.name for r in campaign.runs]
     log.info("first the MAP without %s (its optimum is a start of the full fit)", ", ".join(nested))
     inner = fit_map(inner_problem, names, n_starts=options.n_starts, seed=seed,
-                    max_steps=options.map_steps, polish_steps=options.map_steps)
+                    max_steps=options.map_steps, polish_steps=options.map_steps, continuations=options.map_continuations)
     start = nested_start(problem, names, inner.u, inner_problem.names(names))
     if "gap_steps" in nested:
         start = gap_on_the_middle_step(problem, names, start)
@@ -257,7 +260,7 @@ def hop_to_the_hold(campaign: Campaign, problem, map_result, options: FitOptions
         return map_result
     start = moved_start(problem, map_result.u, hold_mode_values(*readings))
     hopped = fit_map(problem, list(names), n_starts=0, seed=seed, max_steps=options.map_steps,
-                     polish_steps=options.map_steps, warm_starts=start[None, :])
+                     polish_steps=options.map_steps, continuations=options.map_continuations, warm_starts=start[None, :])
     log.info("hop to the hold: log posterior %.1f from the MAP's %.1f", hopped.log_density, map_result.log_density)
     return hopped if hopped.log_density > map_result.log_density else map_result
 
@@ -270,13 +273,14 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
     log.info("MAP from %d starts, %d parameters (the first fit of a model shape compiles it first)",
              options.n_starts, problem.dim)
     map_result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed,
-                         max_steps=options.map_steps, polish_steps=options.map_steps, warm_starts=warm)
+                         max_steps=options.map_steps, polish_steps=options.map_steps,
+                         continuations=options.map_continuations, warm_starts=warm)
     if options.hop_to_the_hold:
         map_result = hop_to_the_hold(campaign, problem, map_result, options, seed)
     if options.noise.cycle_class_noise:
         # the classes' noise levels read at this optimum, the fit repeated with them
         problem, map_result = refit_with_class_noise(problem, map_result, seed=seed, max_steps=options.map_steps,
-                                                     polish_steps=options.map_steps)
+                                                     polish_steps=options.map_steps, continuations=options.map_continuations)
     if options.misfit_inflation:
         problem, map_result = widen_for_misfit(problem, map_result)
     log.info("MAP %s; now the posterior (%s) and the metrics", "converged" if map_result.converged
