@@ -146,7 +146,7 @@ def generated_manifest_text(unit: str, path: Path) -> str:
     the fit's priors read."""
     from measured_metrics import CREDIT, MANIFEST
 
-    design, stem = unit.rsplit("-", 2)[0], path.name.removesuffix(".gz").removesuffix(".csv")
+    design, stem = unit.rsplit("-", 2)[0], _stem(path)
     text = MANIFEST.format(folder=design, stem=stem, credit=CREDIT, file=json.dumps(path.as_posix()))
     return text.replace("[reducer]\n", "[reducer]\nrated_torque_Nm = 20.0  # assumed, as in the example manifests\n", 1)
 
