@@ -541,6 +541,10 @@ class DistributedFriction(Effect):
 
 class GapLag(Effect):
     name = "gap_lag"
+    # at one loading rate a damped crossing and a held one both cross the gap late: on a gap held
+    # to 20 N·m (SYNTHETIC friction bench) the lag's signature ranked first, and the held gap,
+    # added after it, left both in the model; so whichever is added, the other is refitted in its place
+    rivals = ("gap_hold",)
     signature_text = "gap crossed late: the fast twist change near zero torque trails the torque in time"
     extension_text = "a first-order lag T_g of the torque the gap sees behind the mesh torque (damped crossing)"
 
@@ -569,6 +573,7 @@ GAP_HOLD_SHARES = (0.025, 0.05, 0.1, 0.2, 0.4)
 
 class GapHold(Effect):
     name = "gap_hold"
+    rivals = ("gap_lag",)
     signature_text = "gap crossed beyond the friction's shift, at the same torque whatever the loop's peak or rate"
     extension_text = "a gap held by its own friction: crossed once the mesh torque exceeds ±T_h (a relay)"
 
@@ -610,6 +615,11 @@ class GapHold(Effect):
                 nuisance=lambda run: np.stack([_t(run, ctx) ** 3, _t(run, ctx) ** 5], axis=1)))
         return _strongest_positive(self.name, evidence, "residual moves the gap crossing earlier, not later, than a "
                                    "smooth gap: no hold torque explains it")
+
+    def rival_start_values(self, ctx):
+        # the hold torque its own signature points at on the fit the rival was added to (the
+        # nested start alone stays at the smaller model's optimum, see start_values)
+        return self.start_values(self.signature(ctx, alpha=1.0))
 
     def start_values(self, evidence):
         # the nested start holds the gap at T_h ≈ 0, where the relay is the smooth gap and the
