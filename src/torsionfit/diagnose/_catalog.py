@@ -57,6 +57,12 @@ class Effect(abc.ABC):
         in a rival's place (no signature of its own to say where); none by default."""
         return {}
 
+    def rival_applicable(self, ctx: FitContext) -> bool:
+        """Whether the extension can be refitted in a rival's place on ``ctx``, the fit the rival
+        was added to (not :meth:`applicable`: a friction level's lag replaces its memory with the
+        load dependence the memory brought); always by default."""
+        return True
+
 
 def _t(run, ctx):
     return run.mesh_torque_Nm / ctx.rated_torque_Nm
@@ -615,6 +621,9 @@ class GapHold(Effect):
                 nuisance=lambda run: np.stack([_t(run, ctx) ** 3, _t(run, ctx) ** 5], axis=1)))
         return _strongest_positive(self.name, evidence, "residual moves the gap crossing earlier, not later, than a "
                                    "smooth gap: no hold torque explains it")
+
+    def rival_applicable(self, ctx):
+        return self.applicable(ctx)  # the smooth gap alone is what a hold replaces
 
     def rival_start_values(self, ctx):
         # the hold torque its own signature points at on the fit the rival was added to (the

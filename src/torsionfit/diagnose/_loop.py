@@ -202,7 +202,7 @@ def _against_rivals(campaign: Campaign, options: DiagnoseOptions, seed: int, eff
     ctx = accepted.before.context
     for name in by_name[accepted.effect].rivals if accepted.effect in by_name else ():
         rival = by_name.get(name)
-        if rival is None or not rival.applicable(ctx):
+        if rival is None or not rival.rival_applicable(ctx):
             continue
         evidence = replace(accepted.evidence, effect=name, description=(
             f"refitted in place of {accepted.effect}, whose signature this is: {accepted.evidence.description}"))
