@@ -83,6 +83,12 @@ class FitOptions:
     # readings point at (:func:`hop_to_the_hold`); measured on the 21 measured loops, an option
     hop_to_the_hold: bool = False
 
+    @property
+    def map_budget(self) -> dict:
+        """fit_map's step budget under these options: every pass ``map_steps``, and
+        ``map_continuations`` more where the chosen optimum stopped at it."""
+        return {"max_steps": self.map_steps, "polish_steps": self.map_steps, "continuations": self.map_continuations}
+
 
 @dataclass(frozen=True, eq=False)
 class CampaignFit:
@@ -200,8 +206,7 @@ def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
     inner_problem = build_problem(campaign, campaign_model(campaign, inner_options), options.noise)
     names = [r.name for r in campaign.runs]
     log.info("first the MAP without %s (its optimum is a start of the full fit)", ", ".join(nested))
-    inner = fit_map(inner_problem, names, n_starts=options.n_starts, seed=seed,
-                    max_steps=options.map_steps, polish_steps=options.map_steps, continuations=options.map_continuations)
+    inner = fit_map(inner_problem, names, n_starts=options.n_starts, seed=seed, **options.map_budget)
     start = nested_start(problem, names, inner.u, inner_problem.names(names))
     if "gap_steps" in nested:
         start = gap_on_the_middle_step(problem, names, start)
@@ -259,8 +264,7 @@ def hop_to_the_hold(campaign: Campaign, problem, map_result, options: FitOptions
     if readings is None or not {"friction_torque", "gap_hold_torque"} <= {p.name for p in problem.physics}:
         return map_result
     start = moved_start(problem, map_result.u, hold_mode_values(*readings))
-    hopped = fit_map(problem, list(names), n_starts=0, seed=seed, max_steps=options.map_steps,
-                     polish_steps=options.map_steps, continuations=options.map_continuations, warm_starts=start[None, :])
+    hopped = fit_map(problem, list(names), n_starts=0, seed=seed, warm_starts=start[None, :], **options.map_budget)
     log.info("hop to the hold: log posterior %.1f from the MAP's %.1f", hopped.log_density, map_result.log_density)
     return hopped if hopped.log_density > map_result.log_density else map_result
 
@@ -273,14 +277,12 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
     log.info("MAP from %d starts, %d parameters (the first fit of a model shape compiles it first)",
              options.n_starts, problem.dim)
     map_result = fit_map(problem, [r.name for r in campaign.runs], n_starts=options.n_starts, seed=seed,
-                         max_steps=options.map_steps, polish_steps=options.map_steps,
-                         continuations=options.map_continuations, warm_starts=warm)
+                         warm_starts=warm, **options.map_budget)
     if options.hop_to_the_hold:
         map_result = hop_to_the_hold(campaign, problem, map_result, options, seed)
     if options.noise.cycle_class_noise:
         # the classes' noise levels read at this optimum, the fit repeated with them
-        problem, map_result = refit_with_class_noise(problem, map_result, seed=seed, max_steps=options.map_steps,
-                                                     polish_steps=options.map_steps, continuations=options.map_continuations)
+        problem, map_result = refit_with_class_noise(problem, map_result, seed=seed, **options.map_budget)
     if options.misfit_inflation:
         problem, map_result = widen_for_misfit(problem, map_result)
     log.info("MAP %s; now the posterior (%s) and the metrics", "converged" if map_result.converged
