@@ -571,7 +571,7 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
         f"Measured loops ({SOURCE}). Model: {model_text(rows, effects)}, "
         + ("the MAP hopped to the hold mode where that is higher (--hop-to-the-hold), " if hop else "") +
         f"{NOISE_TEXT[noise]}, posterior by {posterior_text(sampler, laplace_shape)}, fitted to each file without its last large ramp (block means of {decimate} samples). "
-        "RMSE in arcsec on the raw samples; held-out = the last large ramp predicted from the rest of the file "
+        "RMSE in arcsec on those block means, the model's and the reference's alike; held-out = the last large ramp predicted from the rest of the file "
         "(posterior mean of the draws' predictions; (MAP): the prediction of the MAP alone); "
         "reference = Prandtl–Ishlinskii + tanh gap by NNLS (benchmarks/pi_reference.py) on the same split, as designed "
         "(play weights of either sign) and physical (weights ≥ 0: any break-away density, a clockwise loop); "

@@ -1,0 +1,219 @@
+"""Where the held-out error of the measured validation lies — REAL data
+(JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0), read from predictions saved outside
+the repository, never copied into it.
+
+The validation's held-out ramp (the last large ramp of each file) is split into the samples
+at the **gap crossing** and the rest. On every branch of the ramp that crosses zero torque the
+crossing is where the twist jumps furthest over one N·m of (running-median) torque, found in
+the data and in the model's prediction apart; the crossing window is the torque span from
+1.5 N·m before the earlier of the two to 1.5 N·m past the later. Per loop: the share of the
+held-out samples in that window and the share of the squared error they carry, the RMSE in and
+out of it, and the torque at which the data and the model cross (mean over the crossing
+branches of each direction), and the Prandtl–Ishlinskii reference's RMSE in and out of the
+same windows (refitted as the validation fits it, from the data file):
+
+    .venv/bin/python scripts/measured_validation.py --jobs 2 -o <folder> --save-predictions <predictions>
+    .venv/bin/python scripts/measured_held_out_error.py <predictions> -o docs/measured/held-out-error.md
+"""
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT / "benchmarks"), str(ROOT / "scripts")]
+ARCSEC = 180 / np.pi * 3600
+JUMP_SPAN_NM = 1.0  # torque span over which a crossing's jump is read
+WINDOW_MARGIN_NM = 1.5  # the crossing window reaches this far beyond both crossings
+MIN_SIDE_NM = 3.0  # a crossing branch ends at least this far past zero torque
+START_NM = 1.0  # … and starts no further than this past zero (a ramp may start near zero)
+JUMP_RATIO = 2.0  # a crossing jumps this many times the branch's median move over the same span
+
+
+def crossing(torque_filtered, angle_rad, direction: int) -> tuple[float, float]:
+    """(torque in N·m, jump in rad) where the twist of one monotone branch moves furthest in
+    the branch's direction over ``JUMP_SPAN_NM`` of torque; (nan, nan) if the branch is shorter or
+    no move stands out (``JUMP_RATIO`` × the branch's median move over the same span)."""
+    t = np.asarray(torque_filtered, float)
+    y = np.asarray(angle_rad, float)
+    moves, centres = [], []
+    for i in range(t.size):
+        ahead = np.nonzero(direction * (t[i + 1:] - t[i]) >= JUMP_SPAN_NM)[0]
+        if ahead.size == 0:
+            break
+        j = i + 1 + ahead[0]
+        moves.append(direction * (y[j] - y[i]))
+        centres.append(0.5 * (t[i] + t[j]))
+    if len(moves) < 3:
+        return np.nan, np.nan
+    k = int(np.argmax(moves))
+    if moves[k] < JUMP_RATIO * np.median(np.abs(moves)):
+        return np.nan, np.nan  # no jump stands out: the branch does not cross a gap visibly
+    return centres[k], moves[k]
+
+
+def crossing_windows(torque, angle_rad, prediction_rad, branch, torque_filtered):
+    """Per zero-crossing branch: (direction, data crossing N·m, model crossing N·m, data jump rad,
+    model jump rad, boolean mask of the branch's samples in the crossing window)."""
+    out = []
+    for k in np.unique(branch):
+        sel = branch == k
+        tf = torque_filtered[sel]
+        d = 1 if tf[-1] > tf[0] else -1
+        if not (d * tf[-1] > MIN_SIDE_NM and d * tf[0] < START_NM):
+            continue
+        c_data, j_data = crossing(tf, angle_rad[sel], d)
+        c_model, j_model = crossing(tf, prediction_rad[sel], d)
+        if not (np.isfinite(c_data) and np.isfinite(c_model)):
+            continue
+        lo = min(c_data, c_model) - WINDOW_MARGIN_NM
+        hi = max(c_data, c_model) + WINDOW_MARGIN_NM
+        mask = np.zeros(torque.size, bool)
+        mask[np.nonzero(sel)[0]] = (tf >= lo) & (tf <= hi)
+        out.append((d, c_data, c_model, j_data, j_model, mask))
+    return out
+
+
+def reference_prediction(unit: str, n: int) -> np.ndarray:
+    """The PI reference's prediction of a unit's file (fitted without its last large ramp, as the
+    validation fits it), in block means over ``n`` blocks, offset to the raw angle's mean removed."""
+    from measured_validation import _block, _data_path
+    from pi_reference import PIReference, read_loop
+
+    d = read_loop(_data_path(unit))
+    offset = d["angle_rad"].mean()
+    last = d["test_nr"] == d["test_nr"].max()
+    pred = PIReference().fit(d["torque_Nm"], d["angle_rad"] - offset, ~last).predict() + offset
+    return _block(pred, d["angle_rad"].size // n, n)
+
+
+def anatomy(saved: dict, reference_rad: np.ndarray | None = None) -> dict:
+    """The held-out error of one saved prediction (``--save-predictions``), split at the
+    crossing; with ``reference_rad`` (the reference's prediction, same samples) its error too."""
+    from pi_reference import filter_torque
+    from repeat_reference import branches
+
+    nr = saved["test_nr"]
+    held = nr == nr.max()
+    tau, y = saved["torque_Nm"][held], saved["angle_rad"][held]
+    pred = saved["prediction_rad"].mean(axis=0)[held]
+    tf = filter_torque(tau)
+    windows = crossing_windows(tau, y, pred, branches(tf), tf)
+    at_crossing = np.zeros(tau.size, bool)
+    for *_, mask in windows:
+        at_crossing |= mask
+    sq = ((y - pred) * ARCSEC) ** 2
+    sq_ref = None if reference_rad is None else ((y - reference_rad[held]) * ARCSEC) ** 2
+
+    def rms(m, e=sq):
+        return float(np.sqrt(e[m].mean())) if m.any() else float("nan")
+
+    def mean_of(direction, index):
+        vals = [w[index] for w in windows if w[0] == direction]
+        return float(np.mean(vals)) if vals else float("nan")
+
+    return {
+        "rmse_held_out_arcsec": rms(np.ones(tau.size, bool)),
+        "crossing_branches": len(windows),
+        "share_samples": float(at_crossing.mean()),
+        "share_squared_error": float(sq[at_crossing].sum() / sq.sum()) if sq.sum() > 0 else float("nan"),
+        "rmse_crossing_arcsec": rms(at_crossing),
+        "rmse_elsewhere_arcsec": rms(~at_crossing),
+        **({} if sq_ref is None else {
+            "reference_rmse_held_out_arcsec": rms(np.ones(tau.size, bool), sq_ref),
+            "reference_rmse_crossing_arcsec": rms(at_crossing, sq_ref),
+            "reference_rmse_elsewhere_arcsec": rms(~at_crossing, sq_ref)}),
+        **{f"crossing_{name}_{sgn}_Nm": mean_of(d, i)
+           for d, sgn in ((1, "rising"), (-1, "falling")) for name, i in (("data", 1), ("model", 2))},
+        **{f"jump_{name}_deg": float(np.rad2deg(np.mean([w[i] for w in windows]))) if windows else float("nan")
+           for name, i in (("data", 3), ("model", 4))},
+    }
+
+
+def markdown(rows: dict[str, dict]) -> str:
+    lines = [
+        "Where the held-out error lies (REAL measured data: JelmerV/Anti-Backlash-Cycloidal-Actuator, "
+        "CC BY-SA 4.0; `scripts/measured_held_out_error.py` on the predictions the validation saves "
+        "with `--save-predictions`). The held-out ramp split at its gap crossings: on each branch that "
+        f"crosses zero torque, from {WINDOW_MARGIN_NM} N·m before the earlier of the data's and the model's "
+        f"crossing (the largest jump of twist over {JUMP_SPAN_NM} N·m of running-median torque) to "
+        f"{WINDOW_MARGIN_NM} N·m past the later. RMSE in arcsec (posterior mean prediction, raw samples); "
+        "crossing torques in N·m, mean over the ramp's rising (− to +) and falling (+ to −) crossing "
+        "branches; jump = the twist over the crossing's N·m, mean over branches.",
+        "",
+        "| unit | held-out RMSE model / reference | samples at the crossing | squared error at the crossing "
+        "| RMSE at the crossing model / reference | RMSE elsewhere model / reference "
+        "| crossing rising data / model | crossing falling data / model | jump data / model (deg) |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+
+    def pair(r, key):
+        ref = r.get(f"reference_{key}")
+        return f"{r[key]:.0f}" + ("" if ref is None else f" / {ref:.0f}")
+
+    for unit, r in rows.items():
+        lines.append(
+            f"| {unit} | {pair(r, 'rmse_held_out_arcsec')} | {100 * r['share_samples']:.0f} % "
+            f"| {100 * r['share_squared_error']:.0f} % | {pair(r, 'rmse_crossing_arcsec')} "
+            f"| {pair(r, 'rmse_elsewhere_arcsec')} "
+            f"| {r['crossing_data_rising_Nm']:+.1f} / {r['crossing_model_rising_Nm']:+.1f} "
+            f"| {r['crossing_data_falling_Nm']:+.1f} / {r['crossing_model_falling_Nm']:+.1f} "
+            f"| {r['jump_data_deg']:.3f} / {r['jump_model_deg']:.3f} |")
+    shares = np.array([r["share_squared_error"] for r in rows.values()])
+    samples = np.array([r["share_samples"] for r in rows.values()])
+    ratio = np.array([r["rmse_elsewhere_arcsec"] / r["rmse_held_out_arcsec"] for r in rows.values()])
+    lines += ["", (
+        f"On {len(rows)} loops the crossing windows hold {100 * samples.min():.0f}–{100 * samples.max():.0f} % "
+        f"of the held-out samples (median {100 * np.median(samples):.0f} %) and carry "
+        f"{100 * shares.min():.0f}–{100 * shares.max():.0f} % of the squared error (median "
+        f"{100 * np.median(shares):.0f} %); away from them the RMSE is {100 * ratio.min():.0f}–"
+        f"{100 * ratio.max():.0f} % of the whole ramp's (median {100 * np.median(ratio):.0f} %).")]
+    with_ref = [r for r in rows.values() if "reference_rmse_elsewhere_arcsec" in r]
+    if with_ref:
+        whole = np.array([r["rmse_held_out_arcsec"] / r["reference_rmse_held_out_arcsec"] for r in with_ref])
+        away = np.array([r["rmse_elsewhere_arcsec"] / r["reference_rmse_elsewhere_arcsec"] for r in with_ref])
+        at = np.array([r["rmse_crossing_arcsec"] / r["reference_rmse_crossing_arcsec"] for r in with_ref])
+        lines += ["", (
+            f"Model over reference, RMSE: the whole held-out ramp ≤ 0.8 on {np.sum(whole <= 0.8)} of {whole.size} "
+            f"(median {np.median(whole):.2f}, worst {whole.max():.2f}); away from the crossings ≤ 0.8 on "
+            f"{np.sum(away <= 0.8)} (median {np.median(away):.2f}, worst {away.max():.2f}); at the crossings "
+            f"≤ 0.8 on {np.sum(at <= 0.8)} (median {np.median(at):.2f}, worst {at.max():.2f}).")]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("predictions", type=Path, help="the folder of measured_validation.py --save-predictions")
+    parser.add_argument("-o", "--output", type=Path, default=None, help="markdown file (default: print)")
+    parser.add_argument("--no-reference", action="store_true",
+                        help="the model's error alone (no data file needed)")
+    args = parser.parse_args(argv)
+    files = sorted(args.predictions.glob("*.npz"))
+    if not files:
+        print(f"{args.predictions}: no saved predictions (*.npz from measured_validation.py --save-predictions)",
+              file=sys.stderr)
+        return 2
+    rows = {}
+    for f in files:
+        with np.load(f) as saved:
+            missing = {"time_s", "torque_Nm", "angle_rad", "test_nr", "prediction_rad"} - set(saved.files)
+            if missing:
+                print(f"{f}: missing {sorted(missing)}; expected a file saved by measured_validation.py",
+                      file=sys.stderr)
+                return 2
+            saved = dict(saved)
+        n = saved["angle_rad"].size
+        rows[f.stem] = anatomy(saved, None if args.no_reference else reference_prediction(f.stem, n))
+    text = markdown(rows)
+    if args.output is None:
+        print(text, end="")
+    else:
+        args.output.write_text(text)
+        print(f"wrote {args.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,86 @@
+"""scripts/measured_held_out_error.py: the held-out error split at the gap crossings (SYNTHETIC
+records here; the measured predictions are never in the repository)."""
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+_spec = importlib.util.spec_from_file_location("_held_out_error", ROOT / "scripts" / "measured_held_out_error.py")
+he = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(he)
+
+
+def _ramp_record(cross_data_Nm=2.0, cross_model_Nm=2.0, gap_rad=0.05, n=1200):
+    """SYNTHETIC held-out ramp 0 → +20 → −20 → 0 N·m: twist = compliance·τ ± gap/2, the gap
+    crossed in a tanh 0.1 N·m wide at +c on rising and −c on falling branches."""
+    t = np.linspace(0.0, 1.0, n)
+    tau = np.interp(t, [0, 0.25, 0.75, 1.0], [0.0, 20.0, -20.0, 0.0])
+    rising = np.gradient(tau) > 0
+
+    def twist(c):
+        side = np.where(rising, np.tanh((tau - c) / 0.1), np.tanh((tau + c) / 0.1))
+        return 0.001 * tau + 0.5 * gap_rad * side
+
+    y, pred = twist(cross_data_Nm), twist(cross_model_Nm)
+    return {"time_s": t, "torque_Nm": tau, "angle_rad": y, "test_nr": np.full(n, 102),
+            "prediction_rad": pred[None, :]}
+
+
+def test_the_crossing_is_found_where_the_twist_jumps():
+    rec = _ramp_record(cross_data_Nm=2.0, cross_model_Nm=3.5)
+    r = he.anatomy(rec)
+    assert r["crossing_branches"] == 2  # 0 → +20 and +20 → −20; −20 → 0 never reaches the + crossing
+    assert r["crossing_data_falling_Nm"] == pytest.approx(-2.0, abs=0.3)
+    assert r["crossing_model_falling_Nm"] == pytest.approx(-3.5, abs=0.3)
+    assert r["crossing_data_rising_Nm"] == pytest.approx(2.0, abs=0.3)
+    assert r["jump_data_deg"] == pytest.approx(np.rad2deg(0.05), rel=0.1)
+    # the error lies between the two crossings: at the crossings most of it, elsewhere none
+    assert r["share_squared_error"] > 0.99
+    assert r["rmse_elsewhere_arcsec"] < 1.0
+    assert 0 < r["share_samples"] < 0.2
+
+
+def test_a_model_that_crosses_with_the_data_leaves_no_error_at_the_crossing():
+    r = he.anatomy(_ramp_record(cross_data_Nm=2.0, cross_model_Nm=2.0))
+    assert r["rmse_held_out_arcsec"] < 1e-6
+    assert np.isnan(r["share_squared_error"])  # no error to share, not a division by zero
+
+
+def test_the_reference_is_scored_in_the_same_windows():
+    rec = _ramp_record(cross_data_Nm=2.0, cross_model_Nm=3.5)
+    late = _ramp_record(cross_data_Nm=4.0)["angle_rad"]  # a reference crossing later still
+    r = he.anatomy(rec, reference_rad=late)
+    assert r["reference_rmse_crossing_arcsec"] > r["rmse_crossing_arcsec"] > 0
+    assert r["reference_rmse_elsewhere_arcsec"] < 1.0
+
+
+def test_a_branch_without_a_jump_is_not_a_crossing():
+    rec = _ramp_record(gap_rad=0.0)
+    assert np.isnan(he.crossing(rec["torque_Nm"][:300], rec["angle_rad"][:300], 1)[0])
+    assert he.anatomy(rec)["crossing_branches"] == 0
+
+
+def test_a_folder_without_predictions_stops_with_one_line(tmp_path, capsys):
+    assert he.main([str(tmp_path), "--no-reference"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(tmp_path) in err[0] and "--save-predictions" in err[0]
+
+
+def test_a_file_missing_a_key_is_named(tmp_path, capsys):
+    rec = _ramp_record()
+    del rec["prediction_rad"]
+    np.savez(tmp_path / "unit.npz", **rec)
+    assert he.main([str(tmp_path), "--no-reference"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "unit.npz" in err and "prediction_rad" in err
+
+
+def test_the_table_is_written(tmp_path):
+    np.savez(tmp_path / "synthetic-unit.npz", **_ramp_record(cross_model_Nm=3.0))
+    out = tmp_path / "t.md"
+    assert he.main([str(tmp_path), "--no-reference", "-o", str(out)]) == 0
+    text = out.read_text()
+    assert "| synthetic-unit |" in text and "squared error at the crossing" in text
