@@ -170,6 +170,12 @@ def markdown(rows: dict[str, dict]) -> str:
         f"{100 * shares.min():.0f}–{100 * shares.max():.0f} % of the squared error (median "
         f"{100 * np.median(shares):.0f} %); away from them the RMSE is {100 * ratio.min():.0f}–"
         f"{100 * ratio.max():.0f} % of the whole ramp's (median {100 * np.median(ratio):.0f} %).")]
+    jumps = np.array([r["jump_model_deg"] / r["jump_data_deg"] for r in rows.values()
+                      if np.isfinite(r["jump_model_deg"] / r["jump_data_deg"])])
+    if jumps.size:
+        lines += ["", (
+            f"The model's jump over the crossing's N·m against the data's: smaller on {np.sum(jumps < 1)} of "
+            f"{jumps.size} loops (ratio {jumps.min():.2f}–{jumps.max():.2f}, median {np.median(jumps):.2f}).")]
     with_ref = [r for r in rows.values() if "reference_rmse_elsewhere_arcsec" in r]
     if with_ref:
         whole = np.array([r["rmse_held_out_arcsec"] / r["reference_rmse_held_out_arcsec"] for r in with_ref])
