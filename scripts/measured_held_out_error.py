@@ -10,7 +10,9 @@ the data and in the model's prediction apart; the crossing window is the torque 
 held-out samples in that window and the share of the squared error they carry, the RMSE in and
 out of it, and the torque at which the data and the model cross (mean over the crossing
 branches of each direction), and the Prandtl–Ishlinskii reference's RMSE in and out of the
-same windows (refitted as the validation fits it, from the data file):
+same windows (refitted as the validation fits it, from the data file). A second table gives the
+crossing torques of the data and the model on every large ramp, fitted and held out: where the
+data cross (repeatably or not), where the model does, and how far apart on the fitted ramps:
 
     .venv/bin/python scripts/measured_validation.py --jobs 2 -o <folder> --save-predictions <predictions>
     .venv/bin/python scripts/measured_held_out_error.py <predictions> -o docs/measured/held-out-error.md
@@ -54,16 +56,23 @@ def crossing(torque_filtered, angle_rad, direction: int) -> tuple[float, float]:
     return centres[k], moves[k]
 
 
-def crossing_windows(torque, angle_rad, prediction_rad, branch, torque_filtered):
-    """Per zero-crossing branch: (direction, data crossing N·m, model crossing N·m, data jump rad,
-    model jump rad, boolean mask of the branch's samples in the crossing window)."""
-    out = []
+def zero_crossing_branches(branch, torque_filtered):
+    """(mask, direction ±1) of each monotone branch that starts within ``START_NM`` of zero torque
+    (or before it) and ends ``MIN_SIDE_NM`` past it: the branches that cross the gap."""
     for k in np.unique(branch):
         sel = branch == k
         tf = torque_filtered[sel]
         d = 1 if tf[-1] > tf[0] else -1
-        if not (d * tf[-1] > MIN_SIDE_NM and d * tf[0] < START_NM):
-            continue
+        if d * tf[-1] > MIN_SIDE_NM and d * tf[0] < START_NM:
+            yield sel, d
+
+
+def crossing_windows(torque, angle_rad, prediction_rad, branch, torque_filtered):
+    """Per zero-crossing branch: (direction, data crossing N·m, model crossing N·m, data jump rad,
+    model jump rad, boolean mask of the branch's samples in the crossing window)."""
+    out = []
+    for sel, d in zero_crossing_branches(branch, torque_filtered):
+        tf = torque_filtered[sel]
         c_data, j_data = crossing(tf, angle_rad[sel], d)
         c_model, j_model = crossing(tf, prediction_rad[sel], d)
         if not (np.isfinite(c_data) and np.isfinite(c_model)):
@@ -132,6 +141,42 @@ def anatomy(saved: dict, reference_rad: np.ndarray | None = None) -> dict:
     }
 
 
+def ramp_crossings(saved: dict) -> dict:
+    """Crossing torques (N·m) of the data and the model on every large ramp (``test_nr`` ≥ 100),
+    fitted and held out: per direction the list over ramps, the crossing centre (the mean of the
+    rising and falling medians over ramps), and the model's median offset from the data on the
+    fitted ramps."""
+    from pi_reference import filter_torque
+    from repeat_reference import branches
+
+    nr = saved["test_nr"]
+    pred = saved["prediction_rad"].mean(axis=0)
+    found = {(who, d): [] for who in ("data", "model") for d in (1, -1)}
+    offsets = []
+    for ramp in sorted(set(nr[nr >= 100].tolist())):
+        on = nr == ramp
+        tf = filter_torque(saved["torque_Nm"][on])
+        for sel, d in zero_crossing_branches(branches(tf), tf):
+            t = tf[sel]
+            c_data = crossing(t, saved["angle_rad"][on][sel], d)[0]
+            c_model = crossing(t, pred[on][sel], d)[0]
+            found["data", d].append(c_data)
+            found["model", d].append(c_model)
+            if ramp != nr.max() and np.isfinite(c_data) and np.isfinite(c_model):
+                offsets.append(c_model - c_data)
+
+    def centre(who):
+        rise, fall = (np.nanmedian(found[who, d]) if np.isfinite(found[who, d]).any() else np.nan for d in (1, -1))
+        return float(0.5 * (rise + fall))
+
+    return {
+        **{f"{who}_{'rising' if d == 1 else 'falling'}_Nm": [float(x) for x in v] for (who, d), v in found.items()},
+        "centre_data_Nm": centre("data"),
+        "centre_model_Nm": centre("model"),
+        "fitted_offset_model_minus_data_Nm": float(np.median(np.abs(offsets))) if offsets else float("nan"),
+    }
+
+
 def markdown(rows: dict[str, dict]) -> str:
     lines = [
         "Where the held-out error lies (REAL measured data: JelmerV/Anti-Backlash-Cycloidal-Actuator, "
@@ -186,6 +231,30 @@ def markdown(rows: dict[str, dict]) -> str:
             f"(median {np.median(whole):.2f}, worst {whole.max():.2f}); away from the crossings ≤ 0.8 on "
             f"{np.sum(away <= 0.8)} (median {np.median(away):.2f}, worst {away.max():.2f}); at the crossings "
             f"≤ 0.8 on {np.sum(at <= 0.8)} (median {np.median(at):.2f}, worst {at.max():.2f}).")]
+    ramps = {unit: r["ramps"] for unit, r in rows.items() if "ramps" in r}
+    if ramps:
+        def listed(v):
+            return ", ".join("–" if not np.isfinite(x) else f"{x:+.1f}" for x in v)
+
+        lines += ["", (
+            "Crossing torques on every large ramp of the file (the fitted ones, then the held-out one; N·m), found "
+            "as above in the data and in the model's prediction; centre = the mean of the rising and the falling "
+            "crossing (medians over ramps); offset = the median over the fitted ramps' crossings of |model − data|."),
+            "", "| unit | rising data | rising model | falling data | falling model | centre data / model | offset on the fitted ramps |",
+            "| --- | --- | --- | --- | --- | ---: | ---: |"]
+        for unit, c in ramps.items():
+            lines.append(
+                f"| {unit} | {listed(c['data_rising_Nm'])} | {listed(c['model_rising_Nm'])} "
+                f"| {listed(c['data_falling_Nm'])} | {listed(c['model_falling_Nm'])} "
+                f"| {c['centre_data_Nm']:+.2f} / {c['centre_model_Nm']:+.2f} | {c['fitted_offset_model_minus_data_Nm']:.2f} |")
+        cd = np.array([c["centre_data_Nm"] for c in ramps.values()])
+        cm = np.array([c["centre_model_Nm"] for c in ramps.values()])
+        off = np.array([c["fitted_offset_model_minus_data_Nm"] for c in ramps.values()])
+        lines += ["", (
+            f"The data's crossing centre lies more than 0.3 N·m off zero on {np.sum(np.abs(cd) > 0.3)} of {cd.size} "
+            f"loops ({np.nanmin(cd):+.2f} to {np.nanmax(cd):+.2f} N·m), the model's on {np.sum(np.abs(cm) > 0.3)}; "
+            f"on the fitted ramps the model crosses more than 0.5 N·m from the data (median) on {np.sum(off > 0.5)} "
+            f"of {off.size} loops.")]
     return "\n".join(lines) + "\n"
 
 
@@ -212,6 +281,7 @@ def main(argv=None) -> int:
             saved = dict(saved)
         n = saved["angle_rad"].size
         rows[f.stem] = anatomy(saved, None if args.no_reference else reference_prediction(f.stem, n))
+        rows[f.stem]["ramps"] = ramp_crossings(saved)
     text = markdown(rows)
     if args.output is None:
         print(text, end="")

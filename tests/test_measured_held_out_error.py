@@ -84,3 +84,31 @@ def test_the_table_is_written(tmp_path):
     assert he.main([str(tmp_path), "--no-reference", "-o", str(out)]) == 0
     text = out.read_text()
     assert "| synthetic-unit |" in text and "squared error at the crossing" in text
+
+
+def _asymmetric_ramps(data=(2.0, -1.0), model=(1.5, -1.5), n=1200):
+    """SYNTHETIC file of two large ramps (test_nr 100, 101), each 0 → +20 → −20 → 0 N·m; the gap
+    crossed at ``data`` (rising, falling torque) in the data and at ``model`` in the prediction."""
+    t = np.linspace(0.0, 1.0, n)
+    tau = np.interp(t, [0, 0.25, 0.75, 1.0], [0.0, 20.0, -20.0, 0.0])
+    rising = np.gradient(tau) > 0
+
+    def twist(rise, fall):
+        side = np.where(rising, np.tanh((tau - rise) / 0.1), np.tanh((tau - fall) / 0.1))
+        return 0.001 * tau + 0.025 * side
+
+    y, pred = np.tile(twist(*data), 2), np.tile(twist(*model), 2)
+    return {"time_s": np.concatenate([t, t + 1.0]), "torque_Nm": np.tile(tau, 2), "angle_rad": y,
+            "test_nr": np.repeat([100, 101], n), "prediction_rad": pred[None, :]}
+
+
+def test_the_crossings_of_every_large_ramp_give_their_centre_and_the_models_offset():
+    c = he.ramp_crossings(_asymmetric_ramps())
+    assert c["data_rising_Nm"] == pytest.approx([2.0, 2.0], abs=0.3)
+    assert c["data_falling_Nm"] == pytest.approx([-1.0, -1.0], abs=0.3)
+    assert c["centre_data_Nm"] == pytest.approx(0.5, abs=0.15)
+    assert c["centre_model_Nm"] == pytest.approx(0.0, abs=0.15)
+    # the fitted ramp (100; 101 is the held-out one): |1.5 − 2.0| and |−1.5 + 1.0|
+    assert c["fitted_offset_model_minus_data_Nm"] == pytest.approx(0.5, abs=0.2)
+    same = he.ramp_crossings(_asymmetric_ramps(model=(2.0, -1.0)))
+    assert same["fitted_offset_model_minus_data_Nm"] == pytest.approx(0.0, abs=0.1)
