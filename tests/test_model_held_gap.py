@@ -35,7 +35,7 @@ def test_switch_and_its_checks():
     assert params["gap_hold_torque"].vanishes_at_zero and params["gap_start"].constraint == "signed_unit"
     # a simulated run starts at rest (g0 = 0): no start parameter without free starts
     assert "gap_start" not in {p.name for p in model_with_effects(["hysteresis"], {"gap_hold": True}, 20.0).parameters()}
-    with pytest.raises(InputError, match=r"\[effects\].gap_hold: expected true or false"):
+    with pytest.raises(InputError, match=r"\[effects\].gap_hold: expected true, false or \{centred = false\}"):
         model_with_effects(["hysteresis"], {"gap_hold": "yes"}, 20.0)
     with pytest.raises(InputError, match=r"\[effects\].gap_hold: needs a hysteresis run and cannot be combined"):
         model_with_effects(["hysteresis"], {"gap_hold": True, "gap_preload": True}, 20.0)
@@ -51,6 +51,23 @@ def test_crossings_sit_at_the_hold_torque_whatever_the_peak():
     assert list(np.sign(crossed)) == [1, -1, 1, -1, 1]  # the side the flanks cross to
     np.testing.assert_allclose(np.abs(crossed), 8.0, atol=0.21)
     assert np.all(np.abs(state) <= 1.0)
+
+
+def test_a_band_of_its_own_centre_crosses_at_the_centre_plus_and_minus_the_hold():
+    model = model_with_effects(["hysteresis"], {"gap_hold": {"centred": False}}, 20.0)
+    names = {p.name: p for p in model.parameters()}
+    assert names["gap_centre_torque"].constraint == "real"
+    assert "gap_centre_torque" not in {p.name for p in model_with_effects(["hysteresis"], {"gap_hold": True}, 20.0).parameters()}
+    tau = _ramps(20.0, -20.0, 20.0)
+    held = HeldGapBacklash(centred=False)
+    state = np.asarray(held.state({**PARAMS, "gap_centre_torque": 1.5}, jnp.asarray(tau)))
+    # up at c + T_h, down at c − T_h (the signed torque: negative going down)
+    np.testing.assert_allclose(sorted(_crossings(tau, state)), [-6.5, 9.5, 9.5], atol=0.1)
+    # c = 0 is the centred band
+    np.testing.assert_allclose(held.state({**PARAMS, "gap_centre_torque": 0.0}, jnp.asarray(tau)),
+                               HeldGapBacklash().state(PARAMS, jnp.asarray(tau)))
+    with pytest.raises(InputError, match=r"\[effects\].gap_hold: expected true, false or \{centred = false\}"):
+        model_with_effects(["hysteresis"], {"gap_hold": {"centre": True}}, 20.0)
 
 
 def test_cycles_within_the_hold_torque_never_cross():

@@ -121,6 +121,7 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "gap_closure": (log(0.9 / 0.1), 1.5),  # logit-normal around q = 0.9: mostly closed by friction
         "gap_preload_torque": (log(0.1 * rated), 1.5),
         "gap_hold_torque": (log(0.1 * rated), 1.5),
+        "gap_centre_torque": (0.0, 0.05 * rated),
         "gap_start": (0.0, 1.0),  # tanh-normal: g0 anywhere in (−1, 1)
         "gap_residual_share": (log(0.2 / 0.8), 1.5),  # logit-normal around w = 0.2: most of the gap preloaded
         "gap_residual_torque": (log(0.02 * rated), 2.0),

@@ -205,24 +205,37 @@ class HeldGapBacklash(AbstractBacklash):
     T_h → 0 is :class:`SmoothBacklash`. Away from a run's history (a TE run's steady state, the
     geometric component at the applied torque) the gap is the smooth one; what holding it adds
     is hysteresis, booked as friction. ``initial_state`` g0 is the state at the first sample
-    (0: the flanks midway in the gap), clamped to the band there."""
+    (0: the flanks midway in the gap), clamped to the band there.
+
+    With ``centred = False`` the band is centred on a mesh torque c of its own
+    (``gap_centre_torque``): the gap is crossed at c + T_h going up and c − T_h going down. Measured
+    loops cross at torques whose centre lies off zero while their branches do not move with it
+    (a torque offset would move both)."""
 
     hysteretic = True
     initial_state: float = eqx.field(static=True, default=0.0)
+    centred: bool = eqx.field(static=True, default=True)
 
     def parameters(self):
+        own_centre = () if self.centred else (
+            Parameter("gap_centre_torque", "real", "N·m",
+                      "mesh torque c the hold band is centred on: the gap crossed at c ± T_h"),)
         return SmoothBacklash().parameters() + (
             Parameter("gap_hold_torque", "positive", "N·m",
                       "hold torque T_h: mesh torque beyond which the flanks cross the gap", vanishes_at_zero=True),
-        )
+        ) + own_centre
+
+    def _relative(self, params, mesh_torque_Nm):
+        return mesh_torque_Nm if self.centred else mesh_torque_Nm - params["gap_centre_torque"]
 
     def __call__(self, params, mesh_torque_Nm):
-        return SmoothBacklash()(params, mesh_torque_Nm)
+        return SmoothBacklash()(params, self._relative(params, mesh_torque_Nm))
 
     def band(self, params, mesh_torque_Nm):
         """(lower, upper) bound of the gap state g at each mesh torque."""
         w, th = params["gap_torque"], params["gap_hold_torque"]
-        return jnp.tanh((mesh_torque_Nm - th) / w), jnp.tanh((mesh_torque_Nm + th) / w)
+        tau = self._relative(params, mesh_torque_Nm)
+        return jnp.tanh((tau - th) / w), jnp.tanh((tau + th) / w)
 
     def state(self, params, mesh_torque_Nm, method: ScanMethod = "auto", initial_state=None):
         """Gap state g per sample, in [−1, 1] (−1: closed on the − flank, +1: on the + flank)."""

@@ -65,7 +65,7 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     steps = _gap_steps(effects.get("gap_steps", False))
     if steps is not None and (preload is not None or closed):
         raise InputError("[effects].gap_steps: needs a hysteresis run and cannot be combined with gap_preload")
-    hold = _switched("gap_hold", effects.get("gap_hold", False), HeldGapBacklash)
+    hold = _gap_hold(effects.get("gap_hold", False))
     if hold is not None and (closed or preload is not None or steps is not None):
         raise InputError("[effects].gap_hold: needs a hysteresis run and cannot be combined with gap_preload or gap_steps")
     if closed:
@@ -92,16 +92,29 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     )
 
 
-def _gap_preload(value):
-    """``gap_preload``: false, true (:class:`PreloadedBacklash`) or {residual_play = true}
-    (:class:`ResidualPlayBacklash`: a small share of the gap crossed at zero torque besides)."""
+def _flagged(name: str, value, key: str, default: bool, make):
+    """An effect switched on by ``true`` (``make(default)``) or by a table with one boolean
+    option ``{key = …}`` (``make(option)``); None for ``false``."""
     if value is False or value is None:
         return None
     if value is True:
-        return PreloadedBacklash()
-    if isinstance(value, dict) and set(value) <= {"residual_play"} and isinstance(value.get("residual_play", False), bool):
-        return ResidualPlayBacklash() if value.get("residual_play", False) else PreloadedBacklash()
-    raise InputError(f"[effects].gap_preload: expected true, false or {{residual_play = true}}, got {value!r}")
+        return make(default)
+    if isinstance(value, dict) and set(value) <= {key} and isinstance(value.get(key, default), bool):
+        return make(value.get(key, default))
+    raise InputError(f"[effects].{name}: expected true, false or {{{key} = {str(not default).lower()}}}, got {value!r}")
+
+
+def _gap_preload(value):
+    """``gap_preload``: false, true (:class:`PreloadedBacklash`) or {residual_play = true}
+    (:class:`ResidualPlayBacklash`: a small share of the gap crossed at zero torque besides)."""
+    return _flagged("gap_preload", value, "residual_play", False,
+                    lambda residual: ResidualPlayBacklash() if residual else PreloadedBacklash())
+
+
+def _gap_hold(value):
+    """``gap_hold``: false, true (:class:`HeldGapBacklash`, its band centred on zero mesh torque)
+    or {centred = false} (the band centred on a fitted torque of its own)."""
+    return _flagged("gap_hold", value, "centred", True, lambda centred: HeldGapBacklash(centred=centred))
 
 
 def _gap_steps(value):
