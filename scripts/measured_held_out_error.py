@@ -85,16 +85,14 @@ def crossing_windows(torque, angle_rad, prediction_rad, branch, torque_filtered)
     return out
 
 
-def reference_prediction(unit: str, n: int) -> np.ndarray:
+def reference_block_means(unit: str, n: int) -> np.ndarray:
     """The PI reference's prediction of a unit's file (fitted without its last large ramp, as the
-    validation fits it), in block means over ``n`` blocks, offset to the raw angle's mean removed."""
-    from measured_validation import _block, _data_path
-    from pi_reference import PIReference, read_loop
+    validation fits it), in ``n`` block means as the saved predictions (rad)."""
+    from measured_validation import _block, _data_path, reference_prediction as fitted
+    from pi_reference import read_loop
 
     d = read_loop(_data_path(unit))
-    offset = d["angle_rad"].mean()
-    last = d["test_nr"] == d["test_nr"].max()
-    pred = PIReference().fit(d["torque_Nm"], d["angle_rad"] - offset, ~last).predict() + offset
+    pred = fitted(d)
     return _block(pred, d["angle_rad"].size // n, n)
 
 
@@ -280,7 +278,7 @@ def main(argv=None) -> int:
                 return 2
             saved = dict(saved)
         n = saved["angle_rad"].size
-        rows[f.stem] = anatomy(saved, None if args.no_reference else reference_prediction(f.stem, n))
+        rows[f.stem] = anatomy(saved, None if args.no_reference else reference_block_means(f.stem, n))
         rows[f.stem]["ramps"] = ramp_crossings(saved)
     text = markdown(rows)
     if args.output is None:

@@ -381,6 +381,16 @@ def _block(x, size: int, n: int, how=np.mean) -> np.ndarray:
     return out
 
 
+def reference_prediction(loop: dict, signed: bool = True) -> np.ndarray:
+    """The Prandtl–Ishlinskii reference fitted to a file's raw samples (``read_loop``) without its
+    last large ramp: its prediction of every raw sample (rad)."""
+    from pi_reference import PIReference
+
+    offset = loop["angle_rad"].mean()  # the offset column absorbs it; keeps NNLS well scaled
+    last = loop["test_nr"] == loop["test_nr"].max()
+    return PIReference(signed_play=signed).fit(loop["torque_Nm"], loop["angle_rad"] - offset, ~last).predict() + offset
+
+
 def _reference(path: Path, size: int, held, n: int) -> dict:
     """The Prandtl–Ishlinskii reference fitted to the raw samples except the last large ramp,
     scored on block means of ``size`` samples of the held-out ramp (as the model)."""
@@ -396,8 +406,7 @@ def _reference(path: Path, size: int, held, n: int) -> dict:
     # the torque estimate runs ahead of the gap crossing, which no physical hysteresis does), and
     # the physically admissible PI (weights ≥ 0: a break-away density of any shape, clockwise)
     for key, signed in (("oos_rest", True), ("physical_oos_rest", False)):
-        pred = PIReference(signed_play=signed).fit(d["torque_Nm"], y, ~last).predict()
-        e = _block(pred - y, size, n)[held]
+        e = _block(reference_prediction(d, signed) - d["angle_rad"], size, n)[held]
         out[key] = float(np.sqrt(np.mean(e**2)) / ARCSEC)
     # the reference as designed with a damped gap crossing, its lag chosen on the fitted rows
     fit, lag = PIReference().fit_lagged(d["time_s"], d["torque_Nm"], y, ~last)
