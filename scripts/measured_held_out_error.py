@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from torsionfit.metrics import branch_crossing
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT / "benchmarks"), str(ROOT / "scripts")]
 ARCSEC = 180 / np.pi * 3600
@@ -32,28 +34,15 @@ WINDOW_MARGIN_NM = 1.5  # the crossing window reaches this far beyond both cross
 MIN_SIDE_NM = 3.0  # a crossing branch ends at least this far past zero torque
 START_NM = 1.0  # … and starts no further than this past zero (a ramp may start near zero)
 JUMP_RATIO = 2.0  # a crossing jumps this many times the branch's median move over the same span
+PLAY_SPAN_NM = 0.5  # … over this span on the play ramps (±4 N·m: a branch eight N·m long)
+PLAY_REACH_NM = 3.5  # the play ramps cross a gap the large ramps cross within this torque (±4 N·m ramps)
 
 
-def crossing(torque_filtered, angle_rad, direction: int) -> tuple[float, float]:
+def crossing(torque_filtered, angle_rad, direction: int, span_Nm: float = JUMP_SPAN_NM) -> tuple[float, float]:
     """(torque in N·m, jump in rad) where the twist of one monotone branch moves furthest in
-    the branch's direction over ``JUMP_SPAN_NM`` of torque; (nan, nan) if the branch is shorter or
+    the branch's direction over ``span_Nm`` of torque; (nan, nan) if the branch is shorter or
     no move stands out (``JUMP_RATIO`` × the branch's median move over the same span)."""
-    t = np.asarray(torque_filtered, float)
-    y = np.asarray(angle_rad, float)
-    moves, centres = [], []
-    for i in range(t.size):
-        ahead = np.nonzero(direction * (t[i + 1:] - t[i]) >= JUMP_SPAN_NM)[0]
-        if ahead.size == 0:
-            break
-        j = i + 1 + ahead[0]
-        moves.append(direction * (y[j] - y[i]))
-        centres.append(0.5 * (t[i] + t[j]))
-    if len(moves) < 3:
-        return np.nan, np.nan
-    k = int(np.argmax(moves))
-    if moves[k] < JUMP_RATIO * np.median(np.abs(moves)):
-        return np.nan, np.nan  # no jump stands out: the branch does not cross a gap visibly
-    return centres[k], moves[k]
+    return branch_crossing(torque_filtered, angle_rad, direction, span_Nm, JUMP_RATIO)
 
 
 def zero_crossing_branches(branch, torque_filtered):
@@ -175,6 +164,36 @@ def ramp_crossings(saved: dict) -> dict:
     }
 
 
+def class_crossings(saved: dict) -> dict:
+    """The crossing torques (N·m) of the play ramps (``test_nr`` < 100, read over
+    ``PLAY_SPAN_NM``) and of the large ramps (over ``JUMP_SPAN_NM``), in the data and in the
+    model: per class and direction the median over the crossing branches, and the centre (the
+    mean of the rising and the falling median). A gap whose crossing is one property of the
+    reducer crosses both classes about one centre."""
+    from pi_reference import filter_torque
+    from repeat_reference import branches
+
+    nr = saved["test_nr"]
+    pred = saved["prediction_rad"].mean(axis=0)
+    out = {}
+    for name, in_class, span in (("play", lambda r: r < 100, PLAY_SPAN_NM), ("large", lambda r: r >= 100, JUMP_SPAN_NM)):
+        found = {(who, d): [] for who in ("data", "model") for d in (1, -1)}
+        for ramp in sorted(set(nr.tolist())):
+            if not in_class(ramp):
+                continue
+            on = nr == ramp
+            tf = filter_torque(saved["torque_Nm"][on])
+            for sel, d in zero_crossing_branches(branches(tf), tf):
+                for who, y in (("data", saved["angle_rad"][on]), ("model", pred[on])):
+                    at = crossing(tf[sel], y[sel], d, span)[0]
+                    if np.isfinite(at):
+                        found[who, d].append(at)
+        for who in ("data", "model"):
+            rise, fall = (float(np.median(found[who, d])) if found[who, d] else float("nan") for d in (1, -1))
+            out[f"{name}_{who}"] = {"rising_Nm": rise, "falling_Nm": fall, "centre_Nm": 0.5 * (rise + fall)}
+    return out
+
+
 def markdown(rows: dict[str, dict]) -> str:
     lines = [
         "Where the held-out error lies (REAL measured data: JelmerV/Anti-Backlash-Cycloidal-Actuator, "
@@ -253,6 +272,39 @@ def markdown(rows: dict[str, dict]) -> str:
             f"loops ({np.nanmin(cd):+.2f} to {np.nanmax(cd):+.2f} N·m), the model's on {np.sum(np.abs(cm) > 0.3)}; "
             f"on the fitted ramps the model crosses more than 0.5 N·m from the data (median) on {np.sum(off > 0.5)} "
             f"of {off.size} loops.")]
+    classes = {unit: r["classes"] for unit, r in rows.items() if "classes" in r}
+    if classes:
+        def num(x, digits):
+            return f"{x:+.{digits}f}" if np.isfinite(x) else "–"
+
+        def three(c):
+            return f"{num(c['rising_Nm'], 1)} / {num(c['falling_Nm'], 1)} / {num(c['centre_Nm'], 2)}"
+
+        lines += ["", (
+            f"The play ramps against the large ramps: crossing torques (N·m) rising / falling / centre, medians "
+            f"over each class's crossing branches (the play ramps' jump read over {PLAY_SPAN_NM} N·m, the large "
+            f"ramps' over {JUMP_SPAN_NM} N·m; all ramps, fitted and held out); shift = the large ramps' centre "
+            "minus the play ramps'."),
+            "", "| unit | play ramps, data | play ramps, model | large ramps, data | large ramps, model "
+            "| shift data / model |", "| --- | --- | --- | --- | --- | ---: |"]
+        for unit, c in classes.items():
+            shift = {who: c[f"large_{who}"]["centre_Nm"] - c[f"play_{who}"]["centre_Nm"] for who in ("data", "model")}
+            lines.append(f"| {unit} | {three(c['play_data'])} | {three(c['play_model'])} | {three(c['large_data'])} "
+                         f"| {three(c['large_model'])} | {num(shift['data'], 2)} / {num(shift['model'], 2)} |")
+        # where the large ramps cross beyond the play ramps' reach (a held gap), what the play
+        # ramps show at zero is not the same crossing
+        same = {u: c for u, c in classes.items()
+                if max(abs(c["large_data"]["rising_Nm"]), abs(c["large_data"]["falling_Nm"])) < PLAY_REACH_NM}
+        shifts = np.array([c["large_data"]["centre_Nm"] - c["play_data"]["centre_Nm"] for c in same.values()])
+        shifts = shifts[np.isfinite(shifts)]
+        if shifts.size:
+            lines += ["", (
+                f"On the {shifts.size} loops whose large ramps cross within ±{PLAY_REACH_NM} N·m (a gap the ±4 N·m "
+                f"play ramps cross too; on the others the play ramps stay inside the held gap's band) the data's "
+                f"crossing centre moves from the play ramps to the large ramps by more than 0.5 N·m on "
+                f"{np.sum(np.abs(shifts) > 0.5)} ({shifts.min():+.2f} to {shifts.max():+.2f} N·m; "
+                f"{np.sum(shifts > 0.5)} up, {np.sum(shifts < -0.5)} down): one gap centre per loop cannot place "
+                "both.")]
     return "\n".join(lines) + "\n"
 
 
@@ -280,6 +332,7 @@ def main(argv=None) -> int:
         n = saved["angle_rad"].size
         rows[f.stem] = anatomy(saved, None if args.no_reference else reference_block_means(f.stem, n))
         rows[f.stem]["ramps"] = ramp_crossings(saved)
+        rows[f.stem]["classes"] = class_crossings(saved)
     text = markdown(rows)
     if args.output is None:
         print(text, end="")

@@ -112,3 +112,33 @@ def test_the_crossings_of_every_large_ramp_give_their_centre_and_the_models_offs
     assert c["fitted_offset_model_minus_data_Nm"] == pytest.approx(0.5, abs=0.2)
     same = he.ramp_crossings(_asymmetric_ramps(model=(2.0, -1.0)))
     assert same["fitted_offset_model_minus_data_Nm"] == pytest.approx(0.0, abs=0.1)
+
+
+def test_the_play_and_the_large_ramps_are_crossed_about_centres_of_their_own():
+    """class_crossings: a file of a ±4 N·m play ramp (test_nr 0) crossed about +0.5 N·m and two
+    large ramps crossed about −0.5 N·m gives each class its centre, in the data and the model
+    (which here crosses both about zero); the table names the shift."""
+    play = _ramp_record()
+    n = play["torque_Nm"].size
+    play["torque_Nm"] = play["torque_Nm"] / 5.0  # ±4 N·m
+    rising = np.gradient(play["torque_Nm"]) > 0
+    tau = play["torque_Nm"]
+
+    def twist(rise, fall):
+        return 0.001 * tau + 0.025 * np.where(rising, np.tanh((tau - rise) / 0.05), np.tanh((tau - fall) / 0.05))
+
+    large = _asymmetric_ramps(data=(1.0, -2.0), model=(1.5, -1.5))
+    saved = {
+        "time_s": np.concatenate([play["time_s"] - 1.0, large["time_s"]]),
+        "torque_Nm": np.concatenate([tau, large["torque_Nm"]]),
+        "angle_rad": np.concatenate([twist(2.0, -1.0), large["angle_rad"]]),
+        "test_nr": np.concatenate([np.zeros(n, int), large["test_nr"]]),
+        "prediction_rad": np.concatenate([twist(1.5, -1.5), large["prediction_rad"][0]])[None, :],
+    }
+    c = he.class_crossings(saved)
+    assert c["play_data"]["centre_Nm"] == pytest.approx(0.5, abs=0.15)
+    assert c["large_data"]["centre_Nm"] == pytest.approx(-0.5, abs=0.15)
+    assert c["play_model"]["centre_Nm"] == pytest.approx(0.0, abs=0.15)
+    assert c["large_model"]["centre_Nm"] == pytest.approx(0.0, abs=0.15)
+    text = he.markdown({"synthetic-unit": {**he.anatomy(saved), "classes": c}})
+    assert "moves from the play ramps to the large ramps by more than 0.5 N·m on 1" in text

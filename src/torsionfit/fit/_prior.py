@@ -10,6 +10,7 @@ import numpy as np
 
 from .._segments import fit_ramps
 from ..io import Campaign, HysteresisRun
+from ..metrics._gap_crossing import gap_crossings
 from ..metrics._hysteresis import grouped_cycles
 
 
@@ -152,6 +153,14 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         # as the gap's lag: a tenth of the median ramp, wide, its nested start (three sds down)
         # the instantaneous load
         table["friction_load_lag_time"] = (log(0.1 * (first_look_ramp_time_s(campaign) or max(durations))), 2.0)
+    if any(p.name == "gap_centre_torque" for p in parameters):
+        # a gap centred on a torque of its own: on the data's crossings when the loops show
+        # them, to within the torque span each crossing is read over. Centred on zero, the
+        # measured fits took centres 1-3 N·m from the data's crossings and moved the hold
+        # torque instead; the crossing is a thing the data show directly
+        crossings = gap_crossings(campaign.hysteresis_runs)
+        if math.isfinite(crossings.centre_Nm):
+            table["gap_centre_torque"] = (crossings.centre_Nm, crossings.span_Nm)
     loop = first_look_loop(campaign) if any(p.name in ("gap", "friction_torque") for p in parameters) else None
     if loop is not None:
         play, friction = loop

@@ -10,6 +10,8 @@
   :func:`play_cycles` the play cycle by cycle, :func:`class_readings` both with standard errors;
 - :func:`hysteresis_run_metrics` — all of these for one run, with a note for each metric that
   cannot be computed;
+- :func:`gap_crossings` — the torques at which the hysteresis runs' large cycles cross the
+  gap (the twist's jump), rising and falling, and their centre;
 - :func:`te_metrics` — K_d (180°), K_t (revolution mean) and TE levels of one TE run;
 - :func:`campaign_metrics` / :func:`format_metrics_table` — all runs of a campaign, as the
   `torsionfit metrics` JSON document and as a terminal table.
@@ -19,6 +21,11 @@ from ._campaign import (
     campaign_metrics as campaign_metrics,
     format_metrics_table as format_metrics_table,
     reference_run_for as reference_run_for,
+)
+from ._gap_crossing import (
+    GapCrossings as GapCrossings,
+    branch_crossing as branch_crossing,
+    gap_crossings as gap_crossings,
 )
 from ._hysteresis import (
     AmplitudeClass as AmplitudeClass,
