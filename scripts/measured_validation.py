@@ -6,8 +6,10 @@ For each file (one run: the small play ramps and the large stiffness ramps toget
 1. fit the file **without its last large ramp** (model, :data:`EFFECTS`: base +
    ``load_dependent_friction`` with its level following the load through a first-order lag
    (``{lag = true}``) + ``distributed_friction`` + power-law ``stiffness_nonlinearity`` +
-   ``asymmetry`` + ``gap_hold``; the preloaded split-pinwheel design's, :data:`DESIGN_EFFECTS`:
-   the level remembering the peak load in place of the lag, and ``preload_stiffening``;
+   ``asymmetry`` + ``gap_hold`` with the band centred on a torque of its own
+   (``{centred = false}``, its prior on the data's crossing centre); the preloaded split-pinwheel design's, :data:`DESIGN_EFFECTS`:
+   the level remembering the peak load in place of the lag, the held gap centred on zero, and
+   ``preload_stiffening``;
    ``--effects`` to fit every unit with one model;
    block means of ``--decimate`` samples; iid noise with a level per cycle class (the play
    ramps, the stiffness ramps: their ratio read at the MAP, ``--no-class-noise`` for one level)
@@ -65,8 +67,12 @@ EXAMPLES = ROOT / "examples" / "cycloidal-jv"
 sys.path[:0] = [str(ROOT / "benchmarks"), str(ROOT / "scripts")]  # the reference fits; measured_metrics.py
 ARCSEC = ANGLE_UNITS["arcsec"]
 DEG = ANGLE_UNITS["deg"]
+#: the held gap's band centred on a torque of its own, its prior on the data's crossing centre: on
+#: the baseline loops the held-out RMSE falls on four of six (runin-pos1 from above the reference
+#: to 0.79 of it) and rises on the two whose play ramps cross about another centre than their
+#: large ramps (docs/validation.md); on the split design it rose on four of six: not there
 EFFECTS = {"load_dependent_friction": {"lag": True}, "distributed_friction": True, "stiffness_nonlinearity": "power_law",
-           "asymmetry": True, "gap_hold": True}
+           "asymmetry": True, "gap_hold": {"centred": False}}
 #: the model of a design whose physics is declared beyond EFFECTS (the unit name's prefix →
 #: its effects): the split-pinwheel design is preloaded (anti-backlash), so below a lift-off
 #: torque a second, preloaded path stiffens it, and its small play ramps slide at a friction
