@@ -155,9 +155,9 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         table["friction_load_lag_time"] = (log(0.1 * (first_look_ramp_time_s(campaign) or max(durations))), 2.0)
     if any(p.name == "gap_centre_torque" for p in parameters):
         # a gap centred on a torque of its own: on the data's crossings when the loops show
-        # them, to within the torque span each crossing is read over. Centred on zero, the
-        # measured fits took centres 1-3 N·m from the data's crossings and moved the hold
-        # torque instead; the crossing is a thing the data show directly
+        # them, to within the torque span each crossing is read over — the crossing is a thing
+        # the data show directly. The large cycles': where the play ramps cross about another
+        # centre (7 of 12 measured loops) no one centre places both (docs/validation.md)
         crossings = gap_crossings(campaign.hysteresis_runs)
         if math.isfinite(crossings.centre_Nm):
             table["gap_centre_torque"] = (crossings.centre_Nm, crossings.span_Nm)
