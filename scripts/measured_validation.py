@@ -83,12 +83,16 @@ DESIGN_EFFECTS = {"split-pccf": {"load_dependent_friction": {"memory": True}, "d
 SOURCE = "REAL measured data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0"
 
 
-def test_numbers(path: Path) -> list[int]:
-    """The ``test_nr`` values of a measured file, in file order."""
+def read_loop_test_nr(path: Path) -> np.ndarray:
+    """The ``test_nr`` of every row of a measured file."""
     from pi_reference import read_loop
 
-    nr = read_loop(path)["test_nr"]
-    return [int(v) for v in dict.fromkeys(nr.tolist())]
+    return read_loop(path)["test_nr"]
+
+
+def test_numbers(path: Path) -> list[int]:
+    """The ``test_nr`` values of a measured file, in file order."""
+    return [int(v) for v in dict.fromkeys(read_loop_test_nr(path).tolist())]
 
 
 def measured_files(data: Path | None = None) -> dict[str, Path]:
@@ -206,6 +210,40 @@ def _hdi(x, prob=0.95):
     return float(x[i]), float(x[i + k])
 
 
+def play_crossing_shift_Nm(path: Path, decimate_by: int) -> float:
+    """The large ramps' gap-crossing centre minus the play ramps' (N·m), read off the data file's
+    block means of ``decimate_by`` samples as the held-out error page reads them
+    (``scripts/measured_held_out_error.py``: class_crossings); 0 when either class shows no
+    crossing both ways."""
+    from measured_held_out_error import class_crossings
+    from pi_reference import read_loop
+
+    d = read_loop(path)
+    n = d["angle_rad"].size // decimate_by
+    means = {k: _block(d[k], decimate_by, n) for k in ("time_s", "torque_Nm", "angle_rad")}
+    nr = _block(d["test_nr"], decimate_by, n, how=np.max)
+    saved = {**means, "test_nr": nr, "prediction_rad": means["angle_rad"][None, :]}
+    c = class_crossings(saved)
+    shift = c["large_data"]["centre_Nm"] - c["play_data"]["centre_Nm"]
+    return float(shift) if np.isfinite(shift) else 0.0
+
+
+def _play_torque_shifted(campaign, path: Path, shift_Nm: float, decimated_by: int):
+    """``campaign`` (one run: the file's ramps in file order, the play ramps first; block means of
+    ``decimated_by`` samples) with the play ramps' torque moved by ``shift_Nm`` — a diagnostic:
+    their crossings then centre where the large ramps' do (the data changed in memory only)."""
+    import dataclasses
+
+    nr = read_loop_test_nr(path)
+    if np.any(np.diff((nr >= 100).astype(int)) < 0):
+        raise SystemExit(f"--align-play-crossings: {path}: the play ramps (test_nr < 100) must all come before the large ones")
+    n_play = int(np.sum(nr < 100)) // decimated_by
+    (run,) = campaign.runs
+    torque = np.array(run.torque_Nm, float)
+    torque[:n_play] += shift_Nm
+    return dataclasses.replace(campaign, runs=(dataclasses.replace(run, torque_Nm=torque),))
+
+
 def _data_path(unit: str) -> Path:
     """The measured file of ``unit`` (its example manifest's, else the one found in the data folder)."""
     return Path(re.search(r'file = "([^"]+)"', _manifest_text(unit)).group(1))
@@ -250,6 +288,10 @@ def validate(unit: str, folder: Path, args) -> dict:
     condition = [min(r for r in ramps if r >= 100)] if getattr(args, "condition_first_ramp", False) else None
     train = load_campaign(manifest(unit, [r for r in ramps if r != last], folder, condition))
     whole = decimate(load_campaign(manifest(unit, None, folder)), args.decimate)
+    shift = None
+    if getattr(args, "align_play_crossings", False):
+        shift = play_crossing_shift_Nm(path, args.decimate)
+        train, whole = (_play_torque_shifted(c, path, shift, by) for c, by in ((train, 1), (whole, args.decimate)))
     t0 = time.perf_counter()
     options = fit_options(args, unit)
     fit = fit_campaign(train, options, seed=args.seed)
@@ -296,6 +338,7 @@ def validate(unit: str, folder: Path, args) -> dict:
         "unit": unit,
         "effects": options.effects,
         "seconds_fit": seconds,
+        **({} if shift is None else {"play_torque_shift_Nm": shift}),
         "rmse_in_sample_arcsec": float(np.sqrt(np.mean((y[~held] - mean[~held]) ** 2)) / ARCSEC),
         "rmse_in_sample_large_arcsec": float(np.sqrt(np.mean((y[large_train] - mean[large_train]) ** 2)) / ARCSEC),
         "rmse_held_out_arcsec": float(np.sqrt(np.mean((y[held] - mean[held]) ** 2)) / ARCSEC),
@@ -777,6 +820,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                              "but is out of the likelihood ([runs.condition])")
     parser.add_argument("--hop-to-the-hold", action="store_true",
                         help="one more MAP run from the hold mode the cycles' readings point at (FitOptions.hop_to_the_hold)")
+    parser.add_argument("--align-play-crossings", action="store_true",
+                        help="diagnostic: the play ramps' torque (test_nr < 100) moved by the data's large-ramp gap-crossing "
+                             "centre minus the play ramps' (in memory only), so one gap centre can place both")
     parser.add_argument("--effects", type=json.loads, default=None,
                         help=f"model effects as JSON for every unit (default: by design, {json.dumps(DESIGN_EFFECTS)}, "
                              f"else {json.dumps(EFFECTS)})")
@@ -866,8 +912,8 @@ def _kept_rows(args, units) -> list[dict]:
         return []
     doc = json.loads(path.read_text())
     settings = {"decimate": args.decimate, "sampler": args.sampler, "noise": _noise(args), "laplace_shape": args.laplace_shape,
-                "hop_to_the_hold": args.hop_to_the_hold}
-    recorded = {"hop_to_the_hold": False, **doc}  # written only when on
+                "hop_to_the_hold": args.hop_to_the_hold, "align_play_crossings": args.align_play_crossings}
+    recorded = {"hop_to_the_hold": False, "align_play_crossings": False, **doc}  # written only when on
     for key, value in settings.items():
         if recorded.get(key) != value:
             raise SystemExit(f"--append: {path} was written with {key} = {recorded.get(key)!r}, this run has {value!r}")
@@ -887,6 +933,7 @@ def _write_rows(args, units, results, kept: list[dict]) -> list[dict]:
                                                                        "noise": _noise(args),
                                                                        "laplace_shape": args.laplace_shape,
                                                                        **({"hop_to_the_hold": True} if args.hop_to_the_hold else {}),
+                                                                       **({"align_play_crossings": True} if args.align_play_crossings else {}),
                                                                        "units": rows},
                                                                       indent=1, default=float))
     return rows

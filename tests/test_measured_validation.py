@@ -369,3 +369,31 @@ def test_the_preloaded_play_ramps_are_far_narrower_in_torque_than_the_largest_cy
         runs = campaign.hysteresis_runs
         ramps = probe.play_ramps(runs, [r.angle_rad for r in runs])
         assert 0.09 < ramps["play_deg"] < 0.25 and ramps["half_width_Nm"] == pytest.approx(small, rel=0.2), (unit, ramps)
+
+
+def test_aligning_the_play_crossings_moves_the_play_ramps_torque_alone(tmp_path):
+    """``--align-play-crossings`` (a diagnostic): the play ramps' torque moves by the large ramps'
+    crossing centre minus theirs, the large ramps' samples stay as measured, and read again the
+    play ramps cross that much further along while the large ramps cross where they did."""
+    import sys
+
+    from torsionfit.io import decimate, load_campaign
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from measured_held_out_error import class_crossings
+
+    unit = "baseline-pccf-initial-pos6"
+    path = mv._data_path(unit)
+    shift = mv.play_crossing_shift_Nm(path, 16)
+    assert 0.5 < shift < 1.5, shift  # the held-out error page: +0.93 N·m on this loop
+    whole = decimate(load_campaign(mv.manifest(unit, None, tmp_path)), 16)
+    moved = mv._play_torque_shifted(whole, path, shift, 16)
+    nr = mv._block(mv.read_loop_test_nr(path), 16, len(whole.runs[0]), how=np.max)
+    delta = moved.runs[0].torque_Nm - whole.runs[0].torque_Nm
+    np.testing.assert_allclose(delta[nr < 100][:-1], shift)  # the last block may straddle the classes
+    assert np.all(delta[nr >= 100] == 0)
+    before, after = ({"torque_Nm": r.torque_Nm, "angle_rad": r.angle_rad, "test_nr": nr,
+                      "prediction_rad": r.angle_rad[None, :]} for r in (whole.runs[0], moved.runs[0]))
+    c0, c1 = class_crossings(before), class_crossings(after)
+    assert c1["play_data"]["rising_Nm"] - c0["play_data"]["rising_Nm"] == pytest.approx(shift, abs=0.3)
+    assert c1["large_data"] == c0["large_data"]
