@@ -128,25 +128,30 @@ def anatomy(saved: dict, reference_rad: np.ndarray | None = None) -> dict:
     }
 
 
+def _ramp_crossings(saved: dict, pred: np.ndarray, ramp, span_Nm: float = JUMP_SPAN_NM):
+    """(direction, data crossing N·m, model crossing N·m) of each zero-crossing branch of one
+    ramp (``test_nr`` == ``ramp``); a crossing that does not stand out is nan."""
+    from pi_reference import filter_torque
+    from repeat_reference import branches
+
+    on = saved["test_nr"] == ramp
+    tf = filter_torque(saved["torque_Nm"][on])
+    for sel, d in zero_crossing_branches(branches(tf), tf):
+        yield (d, crossing(tf[sel], saved["angle_rad"][on][sel], d, span_Nm)[0],
+               crossing(tf[sel], pred[on][sel], d, span_Nm)[0])
+
+
 def ramp_crossings(saved: dict) -> dict:
     """Crossing torques (N·m) of the data and the model on every large ramp (``test_nr`` ≥ 100),
     fitted and held out: per direction the list over ramps, the crossing centre (the mean of the
     rising and falling medians over ramps), and the model's median offset from the data on the
     fitted ramps."""
-    from pi_reference import filter_torque
-    from repeat_reference import branches
-
     nr = saved["test_nr"]
     pred = saved["prediction_rad"].mean(axis=0)
     found = {(who, d): [] for who in ("data", "model") for d in (1, -1)}
     offsets = []
     for ramp in sorted(set(nr[nr >= 100].tolist())):
-        on = nr == ramp
-        tf = filter_torque(saved["torque_Nm"][on])
-        for sel, d in zero_crossing_branches(branches(tf), tf):
-            t = tf[sel]
-            c_data = crossing(t, saved["angle_rad"][on][sel], d)[0]
-            c_model = crossing(t, pred[on][sel], d)[0]
+        for d, c_data, c_model in _ramp_crossings(saved, pred, ramp):
             found["data", d].append(c_data)
             found["model", d].append(c_model)
             if ramp != nr.max() and np.isfinite(c_data) and np.isfinite(c_model):
@@ -170,28 +175,25 @@ def class_crossings(saved: dict) -> dict:
     model: per class and direction the median over the crossing branches, and the centre (the
     mean of the rising and the falling median). A gap whose crossing is one property of the
     reducer crosses both classes about one centre."""
-    from pi_reference import filter_torque
-    from repeat_reference import branches
-
     nr = saved["test_nr"]
     pred = saved["prediction_rad"].mean(axis=0)
     out = {}
     for name, in_class, span in (("play", lambda r: r < 100, PLAY_SPAN_NM), ("large", lambda r: r >= 100, JUMP_SPAN_NM)):
         found = {(who, d): [] for who in ("data", "model") for d in (1, -1)}
-        for ramp in sorted(set(nr.tolist())):
-            if not in_class(ramp):
-                continue
-            on = nr == ramp
-            tf = filter_torque(saved["torque_Nm"][on])
-            for sel, d in zero_crossing_branches(branches(tf), tf):
-                for who, y in (("data", saved["angle_rad"][on]), ("model", pred[on])):
-                    at = crossing(tf[sel], y[sel], d, span)[0]
-                    if np.isfinite(at):
-                        found[who, d].append(at)
+        for ramp in sorted(r for r in set(nr.tolist()) if in_class(r)):
+            for d, *at in _ramp_crossings(saved, pred, ramp, span):
+                for who, c in zip(("data", "model"), at):
+                    if np.isfinite(c):
+                        found[who, d].append(c)
         for who in ("data", "model"):
             rise, fall = (float(np.median(found[who, d])) if found[who, d] else float("nan") for d in (1, -1))
             out[f"{name}_{who}"] = {"rising_Nm": rise, "falling_Nm": fall, "centre_Nm": 0.5 * (rise + fall)}
     return out
+
+
+def _signed(x: float, digits: int) -> str:
+    """A signed number, or – for nan (a crossing not found)."""
+    return f"{x:+.{digits}f}" if np.isfinite(x) else "–"
 
 
 def markdown(rows: dict[str, dict]) -> str:
@@ -251,7 +253,7 @@ def markdown(rows: dict[str, dict]) -> str:
     ramps = {unit: r["ramps"] for unit, r in rows.items() if "ramps" in r}
     if ramps:
         def listed(v):
-            return ", ".join("–" if not np.isfinite(x) else f"{x:+.1f}" for x in v)
+            return ", ".join(_signed(x, 1) for x in v)
 
         lines += ["", (
             "Crossing torques on every large ramp of the file (the fitted ones, then the held-out one; N·m), found "
@@ -274,11 +276,8 @@ def markdown(rows: dict[str, dict]) -> str:
             f"of {off.size} loops.")]
     classes = {unit: r["classes"] for unit, r in rows.items() if "classes" in r}
     if classes:
-        def num(x, digits):
-            return f"{x:+.{digits}f}" if np.isfinite(x) else "–"
-
         def three(c):
-            return f"{num(c['rising_Nm'], 1)} / {num(c['falling_Nm'], 1)} / {num(c['centre_Nm'], 2)}"
+            return f"{_signed(c['rising_Nm'], 1)} / {_signed(c['falling_Nm'], 1)} / {_signed(c['centre_Nm'], 2)}"
 
         lines += ["", (
             f"The play ramps against the large ramps: crossing torques (N·m) rising / falling / centre, medians "
@@ -290,7 +289,7 @@ def markdown(rows: dict[str, dict]) -> str:
         for unit, c in classes.items():
             shift = {who: c[f"large_{who}"]["centre_Nm"] - c[f"play_{who}"]["centre_Nm"] for who in ("data", "model")}
             lines.append(f"| {unit} | {three(c['play_data'])} | {three(c['play_model'])} | {three(c['large_data'])} "
-                         f"| {three(c['large_model'])} | {num(shift['data'], 2)} / {num(shift['model'], 2)} |")
+                         f"| {three(c['large_model'])} | {_signed(shift['data'], 2)} / {_signed(shift['model'], 2)} |")
         # where the large ramps cross beyond the play ramps' reach (a held gap), what the play
         # ramps show at zero is not the same crossing
         same = {u: c for u, c in classes.items()

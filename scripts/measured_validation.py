@@ -83,16 +83,11 @@ DESIGN_EFFECTS = {"split-pccf": {"load_dependent_friction": {"memory": True}, "d
 SOURCE = "REAL measured data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0"
 
 
-def read_loop_test_nr(path: Path) -> np.ndarray:
-    """The ``test_nr`` of every row of a measured file."""
-    from pi_reference import read_loop
-
-    return read_loop(path)["test_nr"]
-
-
 def test_numbers(path: Path) -> list[int]:
     """The ``test_nr`` values of a measured file, in file order."""
-    return [int(v) for v in dict.fromkeys(read_loop_test_nr(path).tolist())]
+    from pi_reference import read_loop
+
+    return [int(v) for v in dict.fromkeys(read_loop(path)["test_nr"].tolist())]
 
 
 def measured_files(data: Path | None = None) -> dict[str, Path]:
@@ -210,37 +205,39 @@ def _hdi(x, prob=0.95):
     return float(x[i]), float(x[i + k])
 
 
-def play_crossing_shift_Nm(path: Path, decimate_by: int) -> float:
-    """The large ramps' gap-crossing centre minus the play ramps' (N·m), read off the data file's
-    block means of ``decimate_by`` samples as the held-out error page reads them
-    (``scripts/measured_held_out_error.py``: class_crossings); 0 when either class shows no
-    crossing both ways."""
+def play_crossing_shift_Nm(loop: dict, decimate_by: int) -> float:
+    """The large ramps' gap-crossing centre minus the play ramps' (N·m), read off a data file's
+    (``pi_reference.read_loop``) block means of ``decimate_by`` samples as the held-out error page
+    reads them (``scripts/measured_held_out_error.py``: class_crossings); 0 when either class
+    shows no crossing both ways."""
     from measured_held_out_error import class_crossings
-    from pi_reference import read_loop
 
-    d = read_loop(path)
-    n = d["angle_rad"].size // decimate_by
-    means = {k: _block(d[k], decimate_by, n) for k in ("time_s", "torque_Nm", "angle_rad")}
-    nr = _block(d["test_nr"], decimate_by, n, how=np.max)
-    saved = {**means, "test_nr": nr, "prediction_rad": means["angle_rad"][None, :]}
-    c = class_crossings(saved)
+    n = loop["angle_rad"].size // decimate_by
+    means = {k: _block(loop[k], decimate_by, n) for k in ("time_s", "torque_Nm", "angle_rad")}
+    nr = _block(loop["test_nr"], decimate_by, n, how=np.max)
+    c = class_crossings({**means, "test_nr": nr, "prediction_rad": means["angle_rad"][None, :]})
     shift = c["large_data"]["centre_Nm"] - c["play_data"]["centre_Nm"]
     return float(shift) if np.isfinite(shift) else 0.0
 
 
-def _play_torque_shifted(campaign, path: Path, shift_Nm: float, decimated_by: int):
-    """``campaign`` (one run: the file's ramps in file order, the play ramps first; block means of
-    ``decimated_by`` samples) with the play ramps' torque moved by ``shift_Nm`` — a diagnostic:
-    their crossings then centre where the large ramps' do (the data changed in memory only)."""
-    import dataclasses
-
-    nr = read_loop_test_nr(path)
+def play_rows(loop: dict, path: Path) -> int:
+    """How many rows of the file the play ramps (``test_nr`` < 100) take, all before the large ones."""
+    nr = loop["test_nr"]
     if np.any(np.diff((nr >= 100).astype(int)) < 0):
         raise SystemExit(f"--align-play-crossings: {path}: the play ramps (test_nr < 100) must all come before the large ones")
-    n_play = int(np.sum(nr < 100)) // decimated_by
+    return int(np.sum(nr < 100))
+
+
+def _play_torque_shifted(campaign, n_play_rows: int, shift_Nm: float, decimated_by: int):
+    """``campaign`` (one run: the file's ramps in file order, the play ramps' ``n_play_rows``
+    first; block means of ``decimated_by`` samples) with the play ramps' torque moved by
+    ``shift_Nm`` — a diagnostic: their crossings then centre where the large ramps' do (the data
+    changed in memory only)."""
+    import dataclasses
+
     (run,) = campaign.runs
     torque = np.array(run.torque_Nm, float)
-    torque[:n_play] += shift_Nm
+    torque[:n_play_rows // decimated_by] += shift_Nm
     return dataclasses.replace(campaign, runs=(dataclasses.replace(run, torque_Nm=torque),))
 
 
@@ -290,8 +287,11 @@ def validate(unit: str, folder: Path, args) -> dict:
     whole = decimate(load_campaign(manifest(unit, None, folder)), args.decimate)
     shift = None
     if getattr(args, "align_play_crossings", False):
-        shift = play_crossing_shift_Nm(path, args.decimate)
-        train, whole = (_play_torque_shifted(c, path, shift, by) for c, by in ((train, 1), (whole, args.decimate)))
+        from pi_reference import read_loop
+
+        loop = read_loop(path)
+        shift, n_play = play_crossing_shift_Nm(loop, args.decimate), play_rows(loop, path)
+        train, whole = (_play_torque_shifted(c, n_play, shift, by) for c, by in ((train, 1), (whole, args.decimate)))
     t0 = time.perf_counter()
     options = fit_options(args, unit)
     fit = fit_campaign(train, options, seed=args.seed)

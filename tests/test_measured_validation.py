@@ -382,13 +382,16 @@ def test_aligning_the_play_crossings_moves_the_play_ramps_torque_alone(tmp_path)
     sys.path.insert(0, str(ROOT / "scripts"))
     from measured_held_out_error import class_crossings
 
+    from pi_reference import read_loop
+
     unit = "baseline-pccf-initial-pos6"
     path = mv._data_path(unit)
-    shift = mv.play_crossing_shift_Nm(path, 16)
+    loop = read_loop(path)
+    shift = mv.play_crossing_shift_Nm(loop, 16)
     assert 0.5 < shift < 1.5, shift  # the held-out error page: +0.93 N·m on this loop
     whole = decimate(load_campaign(mv.manifest(unit, None, tmp_path)), 16)
-    moved = mv._play_torque_shifted(whole, path, shift, 16)
-    nr = mv._block(mv.read_loop_test_nr(path), 16, len(whole.runs[0]), how=np.max)
+    moved = mv._play_torque_shifted(whole, mv.play_rows(loop, path), shift, 16)
+    nr = mv._block(loop["test_nr"], 16, len(whole.runs[0]), how=np.max)
     delta = moved.runs[0].torque_Nm - whole.runs[0].torque_Nm
     np.testing.assert_allclose(delta[nr < 100][:-1], shift)  # the last block may straddle the classes
     assert np.all(delta[nr >= 100] == 0)
