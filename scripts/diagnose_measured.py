@@ -31,8 +31,11 @@ def trail_rows(unit: str, doc: dict, seconds: float) -> list[str]:
     for s in doc["steps"]:
         rows.append(f"| | + {s['effect']} | {s['evidence']['log10_p']:.1f} | {s['rmse_before']:.0f} → {s['rmse_after']:.0f} | "
                     f"{s['max_abs_before']:.0f} → {s['max_abs_after']:.0f} | {s['delta_elpd']:.0f} ± {s['delta_elpd_se']:.0f} | |")
+    keep = DiagnoseOptions()
     for s in doc["rejected"]:
-        rows.append(f"| | tried, not kept: {s['effect']} | {s['evidence']['log10_p']:.1f} | {s['rmse_before']:.0f} → "
+        # earned its keep but another candidate of the same step earned more
+        outgained = s["delta_elpd"] > keep.min_delta_elpd and s["delta_elpd"] > keep.se_factor * s["delta_elpd_se"]
+        rows.append(f"| | tried, {'outgained' if outgained else 'not kept'}: {s['effect']} | {s['evidence']['log10_p']:.1f} | {s['rmse_before']:.0f} → "
                     f"{s['rmse_after']:.0f} | | {s['delta_elpd']:.0f} ± {s['delta_elpd_se']:.0f} | |")
     left = doc["unexplained_description"] if doc["unexplained"] else "nothing significant"
     rows.append(f"| | left unexplained: {left} | | {doc['rmse_final']:.0f} | | | |")
@@ -51,6 +54,9 @@ def main(argv=None) -> int:
     parser.add_argument("--ar1", choices=("auto", "on", "off"), default="off",
                         help="AR(1) residuals (default off, the validated setting on measured loops; auto: the fit's "
                              "default, on for runs of >= 100 samples)")
+    parser.add_argument("--candidates-per-step", type=int, default=DiagnoseOptions().candidates_per_step,
+                        help="significant signatures refitted per step, the one that earns the most kept (1: the "
+                             "strongest alone, kept when it earns its keep)")
     args = parser.parse_args(argv)
     if not (ROOT.parent / "shared" / "data" / "cycloidal-jv").is_dir():
         print("../shared/data/cycloidal-jv is absent: nothing to diagnose")
@@ -62,7 +68,8 @@ def main(argv=None) -> int:
         campaign = decimate(load_campaign(MANIFESTS / f"{unit}.toml"), args.decimate)
         say = lambda text, unit=unit: print(f"[{unit}] {text}", file=sys.stderr, flush=True)  # noqa: E731
         noise = NoiseOptions(ar1={"auto": None, "on": True, "off": False}[args.ar1])
-        result = diagnose(campaign, DiagnoseOptions(noise=noise), seed=args.seed, progress=say)
+        options = DiagnoseOptions(noise=noise, candidates_per_step=args.candidates_per_step)
+        result = diagnose(campaign, options, seed=args.seed, progress=say)
         doc = write_diagnosis(result, campaign, args.output / unit)
         seconds = time.perf_counter() - t0
         print(summary_text(doc), file=sys.stderr)

@@ -69,6 +69,8 @@ ZOO = (
     _friction("distributed_friction"),
     _friction("gap_lag"),
     _friction("gap_hold"),
+    Entry("held gap about a torque of its own", "friction/base.toml",
+          lambda folder: tf.friction_case(folder, "gap_centre", 0), ("gap_hold",)),
     # the lag in one step (as the memory's rival) or two (after the instantaneous level)
     Entry("friction level lagging the load", "friction/base.toml",
           lambda folder: tf.friction_case(folder, "friction_load_lag", 0), ("friction_load_lag",),
@@ -107,7 +109,11 @@ def row(entry: Entry, case, d, seconds: float) -> dict:
     extra = set(added) - set(entry.expected) - set(entry.also_allowed)
     as_expected = set(entry.expected) <= set(added) and not extra and d.unexplained == entry.unexplained
     steps = "; ".join(f"{s.effect} {s.delta_elpd:.1f} ± {s.delta_elpd_se:.1f}" for s in d.steps) or "—"
-    rejected = "; ".join(f"{s.effect} {s.delta_elpd:.1f} ± {s.delta_elpd_se:.1f}" for s in d.rejected) or "—"
+    keep = DiagnoseOptions()
+    rejected = "; ".join(
+        f"{s.effect} {s.delta_elpd:.1f} ± {s.delta_elpd_se:.1f}"
+        + (" (outgained)" if s.delta_elpd > keep.min_delta_elpd and s.delta_elpd > keep.se_factor * s.delta_elpd_se else "")
+        for s in d.rejected) or "—"
     return {
         "case": entry.name, "bench": entry.bench, "truth": _short(case.truth) or "nothing",
         "expected": ", ".join(entry.expected) or "nothing",
@@ -151,8 +157,10 @@ def page(rows: list, total_s: float, options: DiagnoseOptions) -> str:
         "without naming them, so `diagnose` sees only the data. The cases, their parameters and seeds are those of "
         "`tests/test_diagnose.py`, `tests/test_diagnose_friction.py` and `tests/test_diagnose_temperature.py` (first "
         "seed; the friction-only temperature case is the zoo's own). "
-        f"Settings: `DiagnoseOptions()` (signature α {options.alpha:g}, an effect is kept when ΔELPD > "
-        f"{options.min_delta_elpd:g} and > {options.se_factor:g} SE, {options.loo_draws} Laplace draws for PSIS-LOO, "
+        f"Settings: `DiagnoseOptions()` (signature α {options.alpha:g}, up to {options.candidates_per_step} significant "
+        f"signatures refitted per step and the one that earns the most kept, when ΔELPD > "
+        f"{options.min_delta_elpd:g} and > {options.se_factor:g} SE — the others are listed as tried, *outgained* where "
+        f"they earned their keep too; {options.loo_draws} Laplace draws for PSIS-LOO, "
         f"{options.n_starts} MAP starts). ΔELPD ± SE of each step added (criteria used: {', '.join(criteria) or 'none'}; "
         "SE from contiguous blocks of each run). The noise estimate is the measurement noise of the final fit's "
         "residuals (short-lag variogram, floored by the encoder). "

@@ -85,12 +85,21 @@ def _gap_hold(rng):
     return {"gap_hold": True}, {"gap_hold_torque_Nm": rng.uniform(20.0, 40.0)}, ()
 
 
+def _gap_centre(rng):
+    # the held gap's band centred 8–15 N·m off zero torque, either side: each branch pair
+    # crosses it at c ± T_h (hold 20–30 N·m), both crossings moved the same way along the torque,
+    # the loaded flanks not moved (a torque offset would move them too)
+    centre = rng.choice([-1.0, 1.0]) * rng.uniform(8.0, 15.0)
+    return ({"gap_hold": {"centred": False}},
+            {"gap_hold_torque_Nm": rng.uniform(20.0, 30.0), "gap_centre_torque_Nm": centre}, ())
+
+
 CASES = {"load_dependent_friction": _load_dependent, "distributed_friction": _distributed, "gap_lag": _gap_lag,
          "gap_hold": _gap_hold}
 #: found in two steps (the load dependence, then its lag): a case of its own
 LAG_STEPS = ["load_dependent_friction", "friction_load_lag"]
 MEMORY_STEPS = ["load_dependent_friction", "friction_load_memory"]
-BUILDERS = {**CASES, "friction_load_lag": _load_lag, "friction_load_memory": _load_memory}
+BUILDERS = {**CASES, "friction_load_lag": _load_lag, "friction_load_memory": _load_memory, "gap_centre": _gap_centre}
 
 
 def friction_case(folder: Path, effect: str | None, seed: int) -> Case:
@@ -160,6 +169,40 @@ def test_diagnose_finds_a_friction_level_remembering_the_peak_load(tmp_path, see
     assert memory.delta_elpd > 2 * memory.delta_elpd_se and memory.after.rmse_arcsec < memory.before.rmse_arcsec, _summary(d)
     assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
     assert not d.unexplained, _summary(d)
+
+
+def _centre_case(tmp_path, seed, initial_effects):
+    case = friction_case(tmp_path, "gap_centre", seed)
+    d = diagnose(case.campaign, DiagnoseOptions(initial_effects=initial_effects), seed=case.seed)
+    print(_summary(d))
+    _check_finite(d)
+    assert d.final.effects == {"gap_hold": {"centred": False}}, _summary(d)
+    step = d.steps[-1]
+    assert step.delta_elpd > 2 * step.delta_elpd_se and step.after.rmse_arcsec < step.before.rmse_arcsec, _summary(d)
+    assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
+    assert not d.unexplained, _summary(d)
+    values = d.final.map_result.values
+    print("fitted centre, hold (N·m):", float(values["gap_centre_torque"]), float(values["gap_hold_torque"]))
+    assert abs(float(values["gap_centre_torque"]) - case.truth["gap_centre_torque_Nm"]) < 1.0, _summary(d)
+    assert abs(float(values["gap_hold_torque"]) - case.truth["gap_hold_torque_Nm"]) < 1.0, _summary(d)
+    return d
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_diagnose_finds_a_held_gap_centred_off_zero(tmp_path, seed):
+    """From the base model in one step: the held gap's signature tries a band about the centre
+    where the data's crossings lie off the fit's, and the hold refitted there recovers both."""
+    d = _centre_case(tmp_path, seed, {})
+    assert [s.effect for s in d.steps] == ["gap_hold"], _summary(d)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_diagnose_finds_the_centre_of_a_declared_held_gap(tmp_path, seed):
+    """A held gap declared centred (as on a design known to hold its gap) whose band lies off
+    zero: the centre's own signature, a score test at c = 0, finds it. Its absence on a centred
+    band is ``test_diagnose_finds_undeclared_friction[gap_hold-*]``, which adds the hold alone."""
+    d = _centre_case(tmp_path, seed, {"gap_hold": True})
+    assert [s.effect for s in d.steps] == ["gap_centre"], _summary(d)
 
 
 @pytest.mark.parametrize("seed", SEEDS)

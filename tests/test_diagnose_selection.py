@@ -223,3 +223,57 @@ def test_a_residual_that_moves_in_jumps_gets_a_note_and_noise_does_not():
     robust, variogram = map(float, re.search(r"stick-slip ([0-9.]+)″ against ([0-9.]+)″", note).groups())
     assert 35.0 < robust < 50.0 and variogram > 2 * robust, note  # the noise is 40″ (× √2 in the increments)
     assert note.startswith(JUMPS) and "\n" not in note  # the residual figure's title finds it by JUMPS
+
+
+def test_a_step_keeps_the_candidate_that_earns_the_most(monkeypatch):
+    """Of a step's significant signatures (up to ``candidates_per_step``, strongest first) every
+    one is refitted and the one that earns the most ELPD is kept; the others, earning or not, are
+    listed as rejected. Stand-in fits and signatures: the rule alone."""
+    from types import SimpleNamespace
+
+    from torsionfit.diagnose import Effect, _loop
+    from torsionfit.diagnose._selection import Comparison
+    from torsionfit.diagnose._signature import Evidence
+
+    gains = {"strong": 40.0, "weaker": 90.0, "weakest": 5.0}  # ΔELPD of each extension; se 1
+
+    class Stand(Effect):
+        def __init__(self, name):
+            self.name = name
+
+        def signature(self, ctx, alpha):
+            return Evidence(self.name, 0.0, 1, {"strong": -30.0, "weaker": -20.0, "weakest": -10.0}[self.name], 0.1, "")
+
+        def extend(self, effects, evidence, ctx):
+            return {**effects, self.name: True}
+
+    catalog = tuple(Stand(n) for n in gains)
+    calls = []
+
+    def fit_with(campaign, effects, options, seed, warm=None, start_values=None):
+        calls.append(tuple(effects))
+        return SimpleNamespace(effects=dict(effects), context=SimpleNamespace(runs=()), score=tuple(effects),
+                               rmse_arcsec=1.0, max_abs_arcsec=1.0, rmse_per_run={})
+
+    def compare(before, after):
+        new = set(after) - set(before)
+        return Comparison(sum(gains[n] for n in new), 1.0, "stand-in", "")
+
+    def signatures(ctx, options, added):
+        return [] if added else [(e, e.signature(ctx, options.alpha)) for e in options.catalog]
+
+    monkeypatch.setattr(_loop, "fit_with", fit_with)
+    monkeypatch.setattr(_loop, "compare", compare)
+    monkeypatch.setattr(_loop, "_signatures", signatures)
+    monkeypatch.setattr(_loop, "noise_rmse_arcsec", lambda ctx: 1.0)
+    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added: [])
+    monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
+    d = _loop.diagnose(SimpleNamespace(), _loop.DiagnoseOptions(catalog=catalog), seed=0)
+    assert [s.effect for s in d.steps] == ["weaker"]
+    assert d.final.effects == {"weaker": True}
+    assert [(s.effect, s.kept) for s in d.rejected] == [("strong", False), ("weakest", False)]
+    assert calls == [(), ("strong",), ("weaker",), ("weakest",)]  # all three refitted, strongest first
+    # one candidate per step: the strongest alone, kept because it earns its keep
+    calls.clear()
+    d = _loop.diagnose(SimpleNamespace(), _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=1), seed=0)
+    assert [s.effect for s in d.steps] == ["strong"] and calls == [(), ("strong",)]

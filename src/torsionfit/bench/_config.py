@@ -27,7 +27,7 @@ EFFECTS = (
     "series_compliance",  # a share of the compliance ahead of the friction; not in the catalog
     "preload_stiffening",  # a preloaded second load path below a lift-off torque (split pinwheels); not in the catalog
     "gap_preload",  # a gap held closed below a preload torque (split-pinwheel designs); not in the catalog
-    "gap_hold",  # a gap held by its own friction, crossed beyond ±T_h (a relay; split pinwheels); not in the catalog
+    "gap_hold",  # a gap held by its own friction, crossed beyond ±T_h (a relay; split pinwheels); {centred = false}: about a torque of its own
     "gap_steps",  # a gap taken up in several steps (pins of unequal clearance); not in the catalog
     "encoder_ripple",  # outside the catalog: a sub-division error periodic in the measured angle
 )

@@ -3,7 +3,7 @@ extension. Adding an effect is one new subclass of :class:`Effect` here, listed 
 ``CATALOG``."""
 
 import abc
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import equinox as eqx
 import jax
@@ -12,6 +12,7 @@ import numpy as np
 
 from ..fit import temperatures_resolving_friction
 from ..fit._prior import first_look_ramp_time_s
+from ..metrics import gap_crossings
 from ..model import (DahlFriction, HeldGapBacklash, MaxwellSlipFriction, SmoothBacklash, TemperatureDependence as TemperatureTerm,
                      GapLag as GapLagTerm)
 from ..model._drift import WARM_UP_FRACTIONS
@@ -609,6 +610,7 @@ class GapHold(Effect):
         values = problem.physics_values(jnp.asarray(ctx.map_result.u))
         start = np.asarray(values["friction_start"], float) if "friction_start" in values else np.zeros(problem.model.n_hysteresis)
         peak = max(float(np.max(np.abs(r.mesh_torque_Nm))) for r in ctx.hysteresis)
+        curvature = lambda run: np.stack([_t(run, ctx) ** 3, _t(run, ctx) ** 5], axis=1)  # noqa: E731
         evidence = []
         for share in GAP_HOLD_SHARES:
             hold = share * peak
@@ -617,8 +619,25 @@ class GapHold(Effect):
                 lambda pred, alt_pred, alt_jac: np.stack([alt_pred - pred, alt_jac["gap_hold_torque"] * hold], axis=1),
                 f"residual along the change from the smooth gap to one held by its own friction up to ±{hold:.3g} N·m "
                 "of mesh torque and the held gap's derivative in its hold torque: the gap crossed later along each "
-                "branch, the loaded flanks not moved", {"hold_torque_Nm": hold},
-                nuisance=lambda run: np.stack([_t(run, ctx) ** 3, _t(run, ctx) ** 5], axis=1)))
+                "branch, the loaded flanks not moved", {"hold_torque_Nm": hold}, nuisance=curvature))
+        off = off_centre_crossing(ctx)
+        if off is not None:
+            # A band centred on a torque of its own, where the data's crossings read directly and
+            # the fit's differ in their centre: a centred hold moves both crossings outward and
+            # cannot place a pair whose centre lies off zero (SYNTHETIC friction bench, a band
+            # held 27 N·m about +14.5 N·m: the centred holds' refit gained ΔELPD 95 ± 106 and the
+            # trail stopped). Tried at the hold and centre the crossings read.
+            wider, centre, span = off
+            hold = max(wider, span)  # beyond the friction's own shift, which the fit draws already
+            alt_off = eqx.tree_at(lambda mm: mm.backlash, problem.model, HeldGapBacklash(centred=False))
+            evidence.append(_score_test(
+                ctx, self.name, alt_off, {"gap_hold_torque": hold, "gap_centre_torque": centre, "gap_start": start},
+                lambda pred, alt_pred, alt_jac: np.stack([alt_pred - pred, alt_jac["gap_hold_torque"] * hold,
+                                                          alt_jac["gap_centre_torque"]], axis=1),
+                f"residual along the change from the smooth gap to one held by its own friction up to ±{hold:.3g} N·m "
+                f"about a mesh torque of {centre:+.3g} N·m (where the data cross the gap against the fit) and the held "
+                "gap's derivatives in its hold and its centre: both crossings moved, the loaded flanks not",
+                {"hold_torque_Nm": hold, "centre_Nm": centre}, nuisance=curvature))
         return _strongest_positive(self.name, evidence, "residual moves the gap crossing earlier, not later, than a "
                                    "smooth gap: no hold torque explains it")
 
@@ -634,10 +653,94 @@ class GapHold(Effect):
         # the nested start holds the gap at T_h ≈ 0, where the relay is the smooth gap and the
         # hold's gradient lives at the crossing alone: on the measured split loop the refit from
         # there (and from the prior's starts) stayed at the smaller model's optimum (ΔELPD −2)
-        return {"gap_hold_torque": evidence.details["hold_torque_Nm"]} if "hold_torque_Nm" in evidence.details else {}
+        found = {"hold_torque_Nm": "gap_hold_torque", "centre_Nm": "gap_centre_torque"}
+        return {name: evidence.details[key] for key, name in found.items() if key in evidence.details}
 
     def extend(self, effects, evidence, ctx):
-        return {**effects, self.name: True}
+        return {**effects, self.name: {"centred": False} if "centre_Nm" in evidence.details else True}
+
+
+@dataclass(frozen=True)
+class _Reading:
+    torque_Nm: np.ndarray
+    angle_rad: np.ndarray
+
+
+def off_centre_crossing(ctx: FitContext) -> tuple[float, float, float] | None:
+    """Where the data cross the gap against the fit, both read off the hysteresis runs' large
+    cycles (:func:`gap_crossings`, on the torque driving the model): (how much further apart the
+    data's rising and falling crossings lie than the fit's, by how much their centre lies off the
+    fit's, the torque span a crossing is read over), all in N·m. None when either reading finds
+    no crossing pair or the centres differ by less than the span."""
+    data = gap_crossings([_Reading(v.drive_torque_Nm, v.measured_angle_rad) for v in ctx.hysteresis])
+    fit = gap_crossings([_Reading(v.drive_torque_Nm, v.measured_angle_rad - v.residual) for v in ctx.hysteresis])
+    shift = data.centre_Nm - fit.centre_Nm
+    if not (np.isfinite(shift) and abs(shift) > data.span_Nm):
+        return None
+    return float(data.half_width_Nm - fit.half_width_Nm), float(shift), float(data.span_Nm)
+
+
+class GapCentre(Effect):
+    name = "gap_centre"
+    signature_text = ("held gap crossed about a torque off zero: going up later and going down earlier than a band "
+                      "centred on zero torque, or the other way round")
+    extension_text = "the held gap's band centred on a mesh torque c of its own: crossed at c ± T_h"
+
+    def applicable(self, ctx):
+        backlash = ctx.map_result.problem.model.backlash
+        return bool(ctx.hysteresis) and isinstance(backlash, HeldGapBacklash) and backlash.centred
+
+    def signature(self, ctx, alpha):
+        # The score of c at c = 0 (nested: the centred band is c = 0): the prediction's
+        # derivative with respect to the band's centre, which moves both crossings the same way
+        # along the torque — the rising one later and the falling one earlier for c > 0 — where
+        # a hold moves them apart and a torque offset moves the whole loop with them. Two-sided:
+        # a centre of either sign is the effect. Tested beyond the curvature's τ³, τ⁵ as the hold
+        # is: an even, single-valued part near zero is what a curved spring also leaves.
+        # The relay's derivative lives at the fit's crossings alone: where the data cross a long
+        # way off them the score sees little (SYNTHETIC friction bench, a band held 27 N·m about
+        # +14.5 N·m declared centred: the fit held it ±41 N·m, placing the rising crossing and not
+        # the falling one, and the score at c = 0 had log10 p −1.0), so the band moved to where the
+        # data's crossings lie off the fit's is tried too, its hold changed by what they read (a P
+        # test, one-sided), and the stronger kept, its p-value Bonferroni-corrected for the two.
+        problem = ctx.map_result.problem
+        alt = eqx.tree_at(lambda mm: mm.backlash, problem.model, HeldGapBacklash(
+            initial_state=problem.model.backlash.initial_state, centred=False))
+        curvature = lambda run: np.stack([_t(run, ctx) ** 3, _t(run, ctx) ** 5], axis=1)  # noqa: E731
+        at_zero = _score_test(
+            ctx, self.name, alt, {"gap_centre_torque": 0.0},
+            lambda pred, alt_pred, alt_jac: alt_jac["gap_centre_torque"][:, None],
+            "residual along the held gap's derivative with respect to the centre of its band: both crossings "
+            "moved the same way along the torque, the loaded flanks not moved", nuisance=curvature)
+        coefficients = at_zero.details.get("coefficients")
+        if coefficients:  # the centre to first order (the column is the derivative per N·m of c)
+            at_zero = replace(at_zero, details={**at_zero.details, "centre_Nm": float(coefficients[0])})
+        off = off_centre_crossing(ctx)
+        if off is None:
+            return at_zero
+        # the band moved and widened or narrowed by what the crossings read: a centred fit may
+        # have placed one crossing with a longer hold (the other then lies twice the centre off)
+        wider, centre, span = off
+        hold = max(float(ctx.map_result.values["gap_hold_torque"]) + wider, span)
+        moved = _score_test(
+            ctx, self.name, alt, {"gap_centre_torque": centre, "gap_hold_torque": hold},
+            lambda pred, alt_pred, alt_jac: np.stack([alt_pred - pred, alt_jac["gap_centre_torque"],
+                                                      alt_jac["gap_hold_torque"] * hold], axis=1),
+            f"residual along the change of the held gap's band to ±{hold:.3g} N·m about {centre:+.3g} N·m (where "
+            "the data cross the gap against the fit) and its derivatives in centre and hold there: both crossings "
+            "moved, the loaded flanks not", {"centre_Nm": centre, "hold_torque_Nm": hold}, nuisance=curvature)
+        if not (moved.details.get("coefficients") and moved.details["coefficients"][0] > 0):
+            moved = replace(moved, log10_p=0.0)
+        best = min((at_zero, moved), key=lambda ev: ev.log10_p)
+        return replace(best, log10_p=min(0.0, best.log10_p + float(np.log10(2))))
+
+    def start_values(self, evidence):
+        found = {"centre_Nm": "gap_centre_torque", "hold_torque_Nm": "gap_hold_torque"}
+        return {name: evidence.details[key] for key, name in found.items() if key in evidence.details}
+
+    def extend(self, effects, evidence, ctx):
+        hold = effects.get("gap_hold", True)
+        return {**effects, "gap_hold": {**(hold if isinstance(hold, dict) else {}), "centred": False}}
 
 
 class TemperatureDependence(Effect):
@@ -699,4 +802,5 @@ CATALOG: tuple[Effect, ...] = (
     TemperatureDependence(),
     GapLag(),
     GapHold(),
+    GapCentre(),
 )
