@@ -137,6 +137,9 @@ def test_diagnose_finds_undeclared_friction(tmp_path, effect, seed):
         # the better kept — here the one switched on
         rival = {"gap_lag": "gap_hold", "gap_hold": "gap_lag"}[effect]
         assert rival in [s.effect for s in d.rejected], _summary(d)
+    if effect == "gap_hold":
+        # a band centred on zero: neither the hold's off-centre band nor the centre comes in
+        assert d.final.effects == {"gap_hold": True}, _summary(d)
     if effect == "load_dependent_friction":
         # the missing μ leaves a residual far above the noise: the fit with it removes most of it
         assert d.final.rmse_arcsec <= 0.7 * d.base.rmse_arcsec, _summary(d)
@@ -199,8 +202,9 @@ def test_diagnose_finds_a_held_gap_centred_off_zero(tmp_path, seed):
 @pytest.mark.parametrize("seed", SEEDS)
 def test_diagnose_finds_the_centre_of_a_declared_held_gap(tmp_path, seed):
     """A held gap declared centred (as on a design known to hold its gap) whose band lies off
-    zero: the centre's own signature, a score test at c = 0, finds it. Its absence on a centred
-    band is ``test_diagnose_finds_undeclared_friction[gap_hold-*]``, which adds the hold alone."""
+    zero: the centre's own signature (the score at c = 0, or the band moved to where the data's
+    crossings lie off the fit's) finds it. Its absence on a centred band is
+    ``test_diagnose_finds_undeclared_friction[gap_hold-*]``, which adds the hold alone, centred."""
     d = _centre_case(tmp_path, seed, {"gap_hold": True})
     assert [s.effect for s in d.steps] == ["gap_centre"], _summary(d)
 
