@@ -13,6 +13,8 @@ import sys
 import time
 from pathlib import Path
 
+import jax
+
 from torsionfit.diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
 from torsionfit.fit import NoiseOptions
 from torsionfit.io import decimate, load_campaign
@@ -77,6 +79,9 @@ def main(argv=None) -> int:
         docs[unit]["steps"] = [{k: s[k] for k in ("effect", "rmse_before", "rmse_after", "delta_elpd", "delta_elpd_se")} for s in doc["steps"]]
         docs[unit]["seconds"] = seconds
         rows += trail_rows(unit, doc, seconds)
+        # each loop compiles its own programs (its lengths): kept across 21 loops they exhausted
+        # the compiler's memory at the 13th
+        jax.clear_caches()
     lines = [
         "Closing the loop on measured loops (REAL data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0; "
         f"block means of {args.decimate} samples; rated torque 20 N·m assumed; {NOISE_TEXT[args.ar1]}), "
