@@ -36,7 +36,7 @@ def trail_rows(unit: str, doc: dict, seconds: float) -> list[str]:
     keep = DiagnoseOptions()
     for s in doc["rejected"]:
         # earned its keep but another candidate of the same step earned more
-        outgained = s["delta_elpd"] > keep.min_delta_elpd and s["delta_elpd"] > keep.se_factor * s["delta_elpd_se"]
+        outgained = keep.earns_keep(s["delta_elpd"], s["delta_elpd_se"])
         rows.append(f"| | tried, {'outgained' if outgained else 'not kept'}: {s['effect']} | {s['evidence']['log10_p']:.1f} | {s['rmse_before']:.0f} → "
                     f"{s['rmse_after']:.0f} | | {s['delta_elpd']:.0f} ± {s['delta_elpd_se']:.0f} | |")
     left = doc["unexplained_description"] if doc["unexplained"] else "nothing significant"

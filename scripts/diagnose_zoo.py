@@ -112,7 +112,7 @@ def row(entry: Entry, case, d, seconds: float) -> dict:
     keep = DiagnoseOptions()
     rejected = "; ".join(
         f"{s.effect} {s.delta_elpd:.1f} ± {s.delta_elpd_se:.1f}"
-        + (" (outgained)" if s.delta_elpd > keep.min_delta_elpd and s.delta_elpd > keep.se_factor * s.delta_elpd_se else "")
+        + (" (outgained)" if keep.earns_keep(s.delta_elpd, s.delta_elpd_se) else "")
         for s in d.rejected) or "—"
     return {
         "case": entry.name, "bench": entry.bench, "truth": _short(case.truth) or "nothing",

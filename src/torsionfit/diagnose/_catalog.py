@@ -610,7 +610,7 @@ class GapHold(Effect):
         values = problem.physics_values(jnp.asarray(ctx.map_result.u))
         start = np.asarray(values["friction_start"], float) if "friction_start" in values else np.zeros(problem.model.n_hysteresis)
         peak = max(float(np.max(np.abs(r.mesh_torque_Nm))) for r in ctx.hysteresis)
-        curvature = lambda run: np.stack([_t(run, ctx) ** 3, _t(run, ctx) ** 5], axis=1)  # noqa: E731
+        curvature = _curvature(ctx)
         evidence = []
         for share in GAP_HOLD_SHARES:
             hold = share * peak
@@ -653,11 +653,22 @@ class GapHold(Effect):
         # the nested start holds the gap at T_h ≈ 0, where the relay is the smooth gap and the
         # hold's gradient lives at the crossing alone: on the measured split loop the refit from
         # there (and from the prior's starts) stayed at the smaller model's optimum (ΔELPD −2)
-        found = {"hold_torque_Nm": "gap_hold_torque", "centre_Nm": "gap_centre_torque"}
-        return {name: evidence.details[key] for key, name in found.items() if key in evidence.details}
+        return _held_gap_starts(evidence)
 
     def extend(self, effects, evidence, ctx):
         return {**effects, self.name: {"centred": False} if "centre_Nm" in evidence.details else True}
+
+
+def _curvature(ctx):
+    """Nuisance columns τ³, τ⁵ of a run's mesh torque (per rated torque): the compliance
+    curvature's own directions, which the held gap's signatures are tested beyond."""
+    return lambda run: np.stack([_t(run, ctx) ** 3, _t(run, ctx) ** 5], axis=1)
+
+
+def _held_gap_starts(evidence) -> dict:
+    """Start values (N·m) of a held gap's hold and centre where its signature found them."""
+    found = {"hold_torque_Nm": "gap_hold_torque", "centre_Nm": "gap_centre_torque"}
+    return {name: evidence.details[key] for key, name in found.items() if key in evidence.details}
 
 
 @dataclass(frozen=True)
@@ -706,7 +717,7 @@ class GapCentre(Effect):
         problem = ctx.map_result.problem
         alt = eqx.tree_at(lambda mm: mm.backlash, problem.model, HeldGapBacklash(
             initial_state=problem.model.backlash.initial_state, centred=False))
-        curvature = lambda run: np.stack([_t(run, ctx) ** 3, _t(run, ctx) ** 5], axis=1)  # noqa: E731
+        curvature = _curvature(ctx)
         at_zero = _score_test(
             ctx, self.name, alt, {"gap_centre_torque": 0.0},
             lambda pred, alt_pred, alt_jac: alt_jac["gap_centre_torque"][:, None],
@@ -735,8 +746,7 @@ class GapCentre(Effect):
         return replace(best, log10_p=min(0.0, best.log10_p + float(np.log10(2))))
 
     def start_values(self, evidence):
-        found = {"centre_Nm": "gap_centre_torque", "hold_torque_Nm": "gap_hold_torque"}
-        return {name: evidence.details[key] for key, name in found.items() if key in evidence.details}
+        return _held_gap_starts(evidence)
 
     def extend(self, effects, evidence, ctx):
         hold = effects.get("gap_hold", True)

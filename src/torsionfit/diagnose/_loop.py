@@ -46,6 +46,10 @@ class DiagnoseOptions:
     noise: NoiseOptions = NoiseOptions()
     catalog: tuple = CATALOG
 
+    def earns_keep(self, delta_elpd: float, se: float) -> bool:
+        """Whether an extension's ΔELPD ± SE over the fit it extends earns its keep."""
+        return delta_elpd > self.min_delta_elpd and delta_elpd > self.se_factor * se
+
 
 @dataclass(frozen=True, eq=False)
 class Fitted:
@@ -173,7 +177,7 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
             trial = fit_with(campaign, trial_effects, options, seed, warm=current, start_values=effect.start_values(ev))
             c = compare(current.score, trial.score)
             step = Step(effect.name, ev, current, trial, c, kept=True)
-            if c.delta > options.min_delta_elpd and c.delta > options.se_factor * c.se:
+            if options.earns_keep(c.delta, c.se):
                 if accepted is None or c.delta > accepted.delta_elpd:
                     if accepted is not None:
                         rejected.append(replace(accepted, kept=False))
@@ -222,7 +226,7 @@ def _against_rivals(campaign: Campaign, options: DiagnoseOptions, seed: int, eff
         trial = fit_with(campaign, rival.extend(effects, evidence, ctx), options, seed, warm=accepted.after,
                          start_values=rival.rival_start_values(ctx))
         c = compare(accepted.after.score, trial.score)
-        if c.delta > options.min_delta_elpd and c.delta > options.se_factor * c.se:
+        if options.earns_keep(c.delta, c.se):
             say(f"  {name} replaces {accepted.effect}: ΔELPD {c.delta:.1f} ± {c.se:.1f} ({c.criterion})")
             rejected.append(replace(accepted, kept=False))
             accepted = Step(name, evidence, accepted.before, trial, compare(accepted.before.score, trial.score), kept=True)
