@@ -271,6 +271,7 @@ def fit_options(args, unit: str | None = None) -> FitOptions:
                       max_steps=args.max_steps, n_starts=args.starts, misfit_inflation=not args.no_misfit_inflation,
                       hop_to_the_hold=getattr(args, "hop_to_the_hold", False),
                       noise=NoiseOptions(ar1=None if args.ar1 else False, cycle_amplitude_noise=args.cycle_noise,
+                                         student_t_dof=getattr(args, "student_t", None),
                                          cycle_class_noise=args.class_noise,
                                          first_excursion_class=getattr(args, "first_excursion_class", False),
                                          first_excursion_conditioning=getattr(args, "condition_first_excursions", False),
@@ -330,7 +331,10 @@ def validate(unit: str, folder: Path, args) -> dict:
     nr = _block(_test_nr_of(path), args.decimate, len(y), np.min)
     held = nr == last
     mean = pred.mean(axis=0)
-    noisy = pred[:, held] + np.broadcast_to(marginal, y.shape)[held] * rng.standard_normal(pred[:, held].shape)
+    # the likelihood's noise: Gaussian, or Student-t with the fit's scale
+    nu = getattr(args, "student_t", None)
+    unit_noise = rng.standard_t(nu, pred[:, held].shape) if nu else rng.standard_normal(pred[:, held].shape)
+    noisy = pred[:, held] + np.broadcast_to(marginal, y.shape)[held] * unit_noise
     lo, hi = np.quantile(noisy, [0.05, 0.95], axis=0)
     inside = float(np.mean((y[held] >= lo) & (y[held] <= hi)))
     large_train = (nr >= 100) & ~held
@@ -585,6 +589,19 @@ NOISE_TEXT = {
 
 
 def _noise(args) -> str:
+    """The key of the run's noise in :data:`NOISE_TEXT`, ``-t<DOF>`` appended for Student-t noise."""
+    nu = getattr(args, "student_t", None)
+    return _noise_shape(args) + (f"-t{nu:g}" if nu else "")
+
+
+def noise_text(noise: str) -> str:
+    """How the table's header names the noise of key ``noise`` (:func:`_noise`)."""
+    shape, _, nu = noise.partition("-t")
+    text = NOISE_TEXT[shape]
+    return text.replace("noise", f"Student-t noise (ν = {nu})", 1) if nu else text
+
+
+def _noise_shape(args) -> str:
     if args.ar1:
         return "ar1"
     if args.class_noise:
@@ -628,7 +645,7 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
     lines = [
         f"Measured loops ({SOURCE}). Model: {model_text(rows, effects)}, "
         + ("the MAP hopped to the hold mode where that is higher (--hop-to-the-hold), " if hop else "") +
-        f"{NOISE_TEXT[noise]}, posterior by {posterior_text(sampler, laplace_shape)}, fitted to each file without its last large ramp (block means of {decimate} samples). "
+        f"{noise_text(noise)}, posterior by {posterior_text(sampler, laplace_shape)}, fitted to each file without its last large ramp (block means of {decimate} samples). "
         "RMSE in arcsec on those block means, the model's and the reference's alike; held-out = the last large ramp predicted from the rest of the file "
         "(posterior mean of the draws' predictions; (MAP): the prediction of the MAP alone); "
         "reference = Prandtl–Ishlinskii + tanh gap by NNLS (benchmarks/pi_reference.py) on the same split, as designed "
@@ -804,6 +821,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--no-torque-error-variance", action="store_true",
                         help="the angle noise alone, without the torque error carried along the measured branch "
                              "(NoiseOptions.torque_error_variance)")
+    parser.add_argument("--student-t", type=float, default=None, metavar="DOF",
+                        help="Student-t noise with DOF degrees of freedom (NoiseOptions.student_t_dof): heavy tails for "
+                             "the stick-slip jumps; the predictive interval draws its noise from the same t")
     parser.add_argument("--cycle-noise", action="store_true",
                         help="noise level scaled by the amplitude of each sample's torque cycle (NoiseOptions.cycle_amplitude_noise)")
     parser.add_argument("--class-noise", action=argparse.BooleanOptionalAction, default=True,

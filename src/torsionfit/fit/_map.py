@@ -15,7 +15,7 @@ import numpy as np
 import optimistix as optx
 
 from .._x64 import in_float64
-from ._problem import NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD, FitProblem
+from ._problem import NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD, ROBUST_NOISE_ITERATIONS, FitProblem
 
 #: the closed-form ρ is capped just inside the density's bound ρ_max (where u would be infinite)
 _RHO_CAP = RHO_MAX * (1.0 - 1e-3)
@@ -58,7 +58,8 @@ def _map_jit(fn):
 
 def _weighted_residuals(u_phys, problem: FitProblem, u_noise, data_weight):
     white = problem.profile_all(jnp.concatenate([u_phys, u_noise]))[0]
-    return jnp.concatenate([data_weight * white, problem.prior_residuals(u_phys)])
+    # Student-t: pseudo-residuals whose squares sum to its negative log density
+    return jnp.concatenate([data_weight * problem.objective_residuals(white), problem.prior_residuals(u_phys)])
 
 
 def _lm_residuals(u_phys, args):
@@ -104,6 +105,8 @@ def _noise_update(problem: FitProblem, u):
         n_pairs = jnp.maximum(problem.sum_runs(later.astype(e.dtype)), 1.0)
     prev = jnp.where(later, jnp.concatenate([jnp.zeros(1, e.dtype), e[:-1]]), 0.0)
     ar1 = np.asarray(problem.ar1)
+    if problem.student_t_dof:
+        return _robust_noise_update(problem, u, e, prev, later, n_pairs)
     rho = jnp.zeros(problem.n_runs, e.dtype)
     if ar1.any():
         # not demeaned: the likelihood's AR(1) has mean zero, and a run's constant misfit (TE
@@ -124,6 +127,44 @@ def _noise_update(problem: FitProblem, u):
         log_s = 0.5 * jnp.log(jnp.maximum(var - floor2, jnp.maximum(1e-4 * jnp.maximum(floor2, var), 1e-30)))
     rho_ar1 = rho[np.flatnonzero(ar1)]
     return jnp.concatenate([log_s, jnp.log(rho_ar1) - jnp.log(RHO_MAX - rho_ar1)])
+
+
+def _robust_noise_update(problem: FitProblem, u, e, prev, later, n_pairs):
+    """:func:`_noise_update` under a Student-t likelihood: the EM fixed point of its scale
+    mixture, ``ROBUST_NOISE_ITERATIONS`` rounds from the noise at u. Each round weighs every
+    innovation by (ν+1)/(ν+r²), r the innovation over its sample's scale (noise, floor and
+    errors in variables, as the likelihood), and takes the weighted conditional MLE of ρ_r and
+    the weighted stationarity of s_r: a jump the heavy tail explains no longer inflates the level
+    or drags ρ."""
+    nu = problem.student_t_dof
+    n = problem.n_nonlinear
+    ar1 = jnp.asarray(problem.ar1)
+    floor2 = problem.per_sample(problem.floors**2)
+    eiv = jnp.concatenate(problem.eiv_var)
+    shape2 = (jnp.concatenate(problem.noise_shape) ** 2 if problem.noise_shape is not None
+              else jnp.ones_like(e))
+
+    def em_round(_, state):
+        s2, rho = state
+        innov = e - problem.per_sample(rho) * prev
+        scale2 = problem.per_sample(s2) * shape2 + floor2 + eiv
+        weight = jnp.where(later, (nu + 1.0) / (nu + innov**2 / scale2), 0.0)
+        fit = jnp.clip(problem.sum_runs(weight * e * prev) / jnp.maximum(problem.sum_runs(weight * prev**2), 1e-300),
+                       0.01, _RHO_CAP)
+        rho = jnp.where(ar1, fit, 0.0)
+        innov2 = (e - problem.per_sample(rho) * prev) ** 2
+        # the likelihood's stationarity in s², scale² = s²·shape² + floor² + eiv:
+        # Σ shape²/scale² · (w·innov²/scale² − 1) = 0, as a multiplicative fixed point (EM's
+        # s² = mean(w·innov²/shape²) where floor and eiv vanish)
+        at = shape2 / scale2
+        ratio = problem.sum_runs(jnp.where(later, at * weight * innov2 / scale2, 0.0)) / problem.sum_runs(
+            jnp.where(later, at, 0.0))
+        return jnp.maximum(s2 * ratio, 1e-4 * jnp.maximum(problem.floors**2, 1e-26)), rho
+
+    s2, rho = jax.lax.fori_loop(0, ROBUST_NOISE_ITERATIONS, em_round,
+                                (jnp.exp(2.0 * u[n:n + problem.n_runs]), problem.noise_values(u)[1]))
+    rho_ar1 = rho[np.flatnonzero(problem.ar1)]
+    return jnp.concatenate([0.5 * jnp.log(s2), jnp.log(rho_ar1) - jnp.log(RHO_MAX - rho_ar1)])
 
 
 def noise_pass(problem: FitProblem, u_phys, u_noise, solver, max_steps: int):
@@ -217,6 +258,9 @@ def laplace_from_parts(problem: FitProblem, u, jac, sigma, rho) -> np.ndarray:
     counts = np.array([len(y) for y in problem.y], float)
     s2 = np.exp(2 * u[n:n + problem.n_runs])
     var_log_s = (sigma**2 / np.maximum(s2, 1e-300)) ** 2 / (2 * counts)
+    if problem.student_t_dof:
+        # a t scale's Fisher information per sample is 2ν/(ν+3) of the Gaussian's 2
+        var_log_s = var_log_s * (problem.student_t_dof + 3.0) / problem.student_t_dof
     var_log_s = np.minimum(var_log_s, NOISE_PRIOR_SD**2)
     for r in range(problem.n_runs):
         cov[n + r, n + r] = var_log_s[r]

@@ -50,6 +50,11 @@ RHO_PRIOR_SD = 1.5  # logit-normal(0, 1.5) prior on each ρ_r / ρ_max
 #: 1089″, the MAP's 923″ (the MAP held ρ at this bound already)
 RHO_MAX = 0.995
 NOISE_PRIOR_SD = 3.0  # log-normal spread of the noise above the floor
+#: IRLS rounds of the linear parameters under a Student-t likelihood, from the Gaussian solution
+#: (offsets and harmonics: a handful of columns, each round one small solve)
+ROBUST_LINEAR_ITERATIONS = 8
+#: EM rounds of the noise scale (and ρ) under a Student-t likelihood in each noise update
+ROBUST_NOISE_ITERATIONS = 30
 
 
 @dataclass(frozen=True)
@@ -57,9 +62,11 @@ class NoiseOptions:
     """Likelihood options. ``ar1=None`` → AR(1) on for runs with ≥ 100 samples."""
 
     ar1: bool | None = None
-    # None: Gaussian; a number: Student-t with that many dof. With Student-t the linear
-    # parameters are still solved by (whitened) least squares and marginalised with the
-    # Gaussian formula: an approximation, exact only in the Gaussian limit.
+    # None: Gaussian; a number: Student-t with that many dof — heavy tails for residuals that
+    # move in jumps (a measured loop's stick-slip staircase, its gap crossed in a few samples).
+    # The MAP is the Student-t one (fit_map minimises its negative log density, the noise scale by
+    # its EM fixed point); the linear parameters are solved by iteratively reweighted least
+    # squares and marginalised with the Gaussian formula at those weights.
     student_t_dof: float | None = None
     denoise_fraction: float | None = None  # smoother half-width per segment (None: by GCV)
     # True: the noise above the floor of a hysteresis run scales with the amplitude of the
@@ -421,9 +428,38 @@ class FitProblem(eqx.Module):
         b = sum(w.T @ v for w, v in zip(wx, we))
         a = a + 1e-10 * jnp.trace(a) / self.n_linear * jnp.eye(self.n_linear)
         beta = jnp.linalg.solve(a, b)
+        if self.student_t_dof:
+            beta, a = self._reweighted_linear(jnp.concatenate(wx), jnp.concatenate(we), beta)
         white = [v - w @ beta for v, w in zip(we, wx)]
         out = (white, beta, jnp.linalg.slogdet(a)[1])
         return out + (scales,) if return_scales else out
+
+    def _reweighted_linear(self, wx, we, beta):
+        """(β, A) of the linear parameters under the Student-t likelihood: iteratively reweighted
+        least squares from the Gaussian ``beta`` (weights (ν+1)/(ν+r²) of the whitened residual r,
+        the EM weights of the t's scale mixture), and A = XᵀWX at the last weights."""
+        nu = self.student_t_dof
+        ridge = 1e-10 * jnp.eye(self.n_linear)
+        a = wx.T @ wx
+        for _ in range(ROBUST_LINEAR_ITERATIONS):
+            r = we - wx @ beta
+            weight = (nu + 1.0) / (nu + r**2)
+            a = wx.T @ (weight[:, None] * wx)
+            beta = jnp.linalg.solve(a + ridge * jnp.trace(a) / self.n_linear, wx.T @ (weight * we))
+        return beta, a + ridge * jnp.trace(a) / self.n_linear
+
+    def objective_residuals(self, white):
+        """The whitened residuals as least squares sees them: themselves under the Gaussian
+        likelihood; under the Student-t, pseudo-residuals ρ = w·√((ν+1)/ν · log1p(x)/x),
+        x = w²/ν, whose ½Σρ² = Σ (ν+1)/2 · log(1 + w²/ν) is its negative log density up to a
+        constant (smooth through w = 0, where ρ ≈ w·√((ν+1)/ν))."""
+        if not self.student_t_dof:
+            return white
+        nu = self.student_t_dof
+        x = white**2 / nu
+        small = x < 1e-8
+        ratio = jnp.where(small, 1.0 - 0.5 * x, jnp.log1p(x) / jnp.where(small, 1.0, x))
+        return white * jnp.sqrt((nu + 1.0) / nu * ratio)
 
     def profile_all(self, u):
         """:meth:`profile` with all runs concatenated: (whitened residuals (N,), β, log det A,
@@ -591,6 +627,9 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
     if noise.cycle_amplitude_noise and noise.cycle_class_noise:
         raise ValueError("NoiseOptions: cycle_amplitude_noise and cycle_class_noise are two shapes of the same "
                          "noise level; choose one")
+    if noise.student_t_dof is not None and not (np.isfinite(noise.student_t_dof) and noise.student_t_dof > 0):
+        raise ValueError(f"NoiseOptions: student_t_dof must be a positive number of degrees of freedom (or None "
+                         f"for Gaussian noise), got {noise.student_t_dof!r}")
     if noise.first_excursion_class and not noise.cycle_class_noise:
         raise ValueError("NoiseOptions: first_excursion_class is a cycle class: it needs cycle_class_noise")
     if noise.first_excursion_conditioning and noise.first_excursion_class:
