@@ -27,8 +27,10 @@ MISFIT_ALPHA = 0.01  # a ratio is used only when white residuals would exceed it
 
 def misfit_variance_ratio(problem, u, n_blocks: int = MISFIT_BLOCKS) -> np.ndarray:
     """Per run: L · var(block means of the whitened residuals) / mean(whitened²) at ``u``
-    (1 when the run is too short for ``n_blocks`` blocks of 2 samples)."""
-    white = problem.split_runs(_laplace_parts(problem, jnp.asarray(u))[4][0])
+    (1 when the run is too short for ``n_blocks`` blocks of 2 samples); under Student-t noise of
+    the pseudo-residuals least squares minimises (``FitProblem.objective_residuals``)."""
+    # under Student-t noise the pseudo-residuals, whose squares the Laplace curvature is of
+    white = problem.split_runs(problem.objective_residuals(_laplace_parts(problem, jnp.asarray(u))[4][0]))
     out = []
     for w, keep in zip(white, problem.kept_samples()):
         w = np.asarray(w, float)[keep]  # the samples in the likelihood
