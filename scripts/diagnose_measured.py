@@ -56,6 +56,8 @@ def main(argv=None) -> int:
     parser.add_argument("--ar1", choices=("auto", "on", "off"), default="off",
                         help="AR(1) residuals (default off, the validated setting on measured loops; auto: the fit's "
                              "default, on for runs of >= 100 samples)")
+    parser.add_argument("--student-t", type=float, default=None, metavar="DOF",
+                        help="Student-t noise with DOF degrees of freedom (the stick-slip jumps in its heavy tails)")
     parser.add_argument("--candidates-per-step", type=int, default=DiagnoseOptions().candidates_per_step,
                         help="significant signatures refitted per step, the one that earns the most kept (1: the "
                              "strongest alone, kept when it earns its keep)")
@@ -69,7 +71,7 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         campaign = decimate(load_campaign(MANIFESTS / f"{unit}.toml"), args.decimate)
         say = lambda text, unit=unit: print(f"[{unit}] {text}", file=sys.stderr, flush=True)  # noqa: E731
-        noise = NoiseOptions(ar1={"auto": None, "on": True, "off": False}[args.ar1])
+        noise = NoiseOptions(ar1={"auto": None, "on": True, "off": False}[args.ar1], student_t_dof=args.student_t)
         options = DiagnoseOptions(noise=noise, candidates_per_step=args.candidates_per_step)
         result = diagnose(campaign, options, seed=args.seed, progress=say)
         doc = write_diagnosis(result, campaign, args.output / unit)
@@ -84,7 +86,8 @@ def main(argv=None) -> int:
         jax.clear_caches()
     lines = [
         "Closing the loop on measured loops (REAL data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0; "
-        f"block means of {args.decimate} samples; rated torque 20 N·m assumed; {NOISE_TEXT[args.ar1]}), "
+        f"block means of {args.decimate} samples; rated torque 20 N·m assumed; {NOISE_TEXT[args.ar1]}"
+        + (f", Student-t with ν = {args.student_t:g}" if args.student_t else "") + "), "
         f"`scripts/diagnose_measured.py`, seed {args.seed}.",
         "",
         "| unit | step | log10 p of the signature | RMSE (arcsec) | max \\|residual\\| (arcsec) | ΔELPD ± SE | wall (s) |",

@@ -144,6 +144,14 @@ def test_diagnose_passes_its_noise_option_to_every_fit(tmp_path, monkeypatch, fl
     assert _noise_seen(tmp_path, monkeypatch, diagnose_module, "diagnose", "diagnose", flag, lambda n: n.ar1) == ar1
 
 
+@pytest.mark.parametrize("flag, dof", [([], None), (["--student-t", "4"], 4.0)])
+def test_diagnose_passes_its_student_t_option_to_every_fit(tmp_path, monkeypatch, flag, dof):
+    import torsionfit.diagnose as diagnose_module
+
+    assert _noise_seen(tmp_path, monkeypatch, diagnose_module, "diagnose", "diagnose", flag,
+                       lambda n: n.student_t_dof) == dof
+
+
 @pytest.mark.parametrize("flag, on", [([], False), (["--class-noise"], True)])
 def test_fit_passes_the_class_noise_option(tmp_path, monkeypatch, flag, on):
     import torsionfit.report as report_module

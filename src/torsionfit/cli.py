@@ -165,7 +165,8 @@ def _cmd_diagnose(args) -> int:
 
     campaign = decimate(load_campaign(args.campaign), args.decimate)
     check_fittable(campaign)  # before the model is built from the rated torque
-    options = DiagnoseOptions(initial_effects=_parse_effects(args.with_), noise=NoiseOptions(ar1=AR1[args.ar1]))
+    options = DiagnoseOptions(initial_effects=_parse_effects(args.with_),
+                              noise=NoiseOptions(ar1=AR1[args.ar1], student_t_dof=args.student_t))
     say = _say(args)  # progress once the input is known good: bad input is one line
     say(f"read {args.campaign}: " + _campaign_line(campaign))
     result = diagnose(campaign, options, seed=args.seed, progress=say)
@@ -376,6 +377,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_decimate(p, help="diagnose block means of N consecutive samples (dense benches)")
     p.add_argument("--ar1", choices=tuple(AR1), default="auto",
                    help="AR(1) residuals (auto: runs of >= 100 samples); off for measured loops whose misfit is slow")
+    p.add_argument("--student-t", type=float, default=None, metavar="DOF",
+                   help="Student-t likelihood with DOF degrees of freedom (residuals that move in jumps)")
     p.set_defaults(func=_cmd_diagnose)
 
     p = sub.add_parser(
