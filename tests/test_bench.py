@@ -110,6 +110,8 @@ def load_bench_with(path, effects, truth_extra, tmp=[]):
         (lambda s: s.replace("[truth]", "[effects]\nkinematic_error = [1.5]\n[truth]"), "kinematic_error"),
         (lambda s: s.replace("[truth]", "[effects]\nwarp_drive = true\n[truth]"), "unknown key 'warp_drive'"),
         (lambda s: s + "\n[[", "TOML syntax error"),
+        (lambda s: s.replace("[truth]", "[noise]\njump_share = 1.5\njump_arcsec = 10.0\n[truth]"), r"jump_share: expected a share"),
+        (lambda s: s.replace("[truth]", "[noise]\njump_share = 0.1\njump_arcsec = -10.0\n[truth]"), r"jump_arcsec: expected a jump size"),
         (lambda s: s.replace("[truth]", "[effects]\ntemperature_dependence = true\n[truth]\ntemperature_compliance_per_K = 0.003\n"
                              "temperature_friction_per_K = -0.02"), "temperature_dependence needs every run's temperature_C"),
     ],
@@ -139,3 +141,16 @@ def test_te_runs_have_clock_time_in_both_directions(tmp_path):
     assert np.diff(te.output_angle_rad).mean() < 0
     back = load_campaign(write_campaign(sim.campaign, tmp_path / "out"))
     np.testing.assert_allclose(back.runs[1].time_s, te.time_s)
+
+
+def test_jumps_move_their_share_of_the_samples_by_their_size():
+    """[noise] jump_share / jump_arcsec: that share of the angle samples off the noise-free
+    loop by the jump (here ±40″ against 1″ noise)."""
+    jumps = load_bench(BENCHES / "stat_rv_jumps.toml")
+    sim = simulate(jumps, seed=3)
+    run = next(r for r in sim.campaign.runs if r.kind == "hysteresis")
+    clean = np.asarray(sim.components[sim.campaign.runs.index(run)]["total"])
+    off = np.abs(np.asarray(run.angle_rad) - clean) / ANGLE_UNITS["arcsec"]
+    share = np.mean(off > 20.0)
+    assert abs(share - jumps.noise.jump_share) < 0.005
+    assert np.all(np.abs(off[off > 20.0] - 40.0) < 8.0)

@@ -73,6 +73,11 @@ class Noise:
     angle_sd_arcsec: float = 0.0  # white/AR(1) angle noise on top of quantisation
     angle_ar1: float = 0.0  # AR(1) coefficient of that noise, in [0, 1)
     torque_sd_Nm: float | None = None  # default: instrument accuracy × full scale
+    # isolated jumps of the angle reading: this share of the samples (chosen at random) moved by
+    # ±jump_arcsec — heavy-tailed noise, as a stick-slip staircase or a gap crossed between
+    # samples leaves in a measured loop's residual (what ``--student-t`` is for)
+    jump_share: float = 0.0
+    jump_arcsec: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -142,14 +147,20 @@ def load_bench(path) -> Bench:
         raise InputError(f"{w} [instrument]: missing key 'sample_rate_Hz' (hysteresis sampling rate)")
 
     nz = doc.get("noise", {})
-    _check_keys(nz, {"angle_sd_arcsec", "angle_ar1", "torque_sd_Nm"}, f"{w} [noise]")
+    _check_keys(nz, {"angle_sd_arcsec", "angle_ar1", "torque_sd_Nm", "jump_share", "jump_arcsec"}, f"{w} [noise]")
     noise = Noise(
         angle_sd_arcsec=_num(nz, "angle_sd_arcsec", f"{w} [noise]", 0.0),
         angle_ar1=_num(nz, "angle_ar1", f"{w} [noise]", 0.0),
         torque_sd_Nm=_num(nz, "torque_sd_Nm", f"{w} [noise]"),
+        jump_share=_num(nz, "jump_share", f"{w} [noise]", 0.0),
+        jump_arcsec=_num(nz, "jump_arcsec", f"{w} [noise]", 0.0),
     )
     if not 0.0 <= noise.angle_ar1 < 1.0:
         raise InputError(f"{w} [noise].angle_ar1: expected a value in [0, 1), got {noise.angle_ar1}")
+    if not 0.0 <= noise.jump_share < 1.0:
+        raise InputError(f"{w} [noise].jump_share: expected a share of the samples in [0, 1), got {noise.jump_share}")
+    if not noise.jump_arcsec >= 0.0:
+        raise InputError(f"{w} [noise].jump_arcsec: expected a jump size ≥ 0 arcsec, got {noise.jump_arcsec}")
 
     effects = doc.get("effects", {})
     _check_keys(effects, set(EFFECTS), f"{w} [effects]")

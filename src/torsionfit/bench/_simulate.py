@@ -97,6 +97,17 @@ def _ar1_noise(rng, n, sd, phi):
     return x
 
 
+def _jumps(rng, n, share, size):
+    """Isolated jumps: ``share`` of n samples (at random) moved by ±``size``; no draw at all
+    when off, so a bench without jumps reads the same numbers as before they existed."""
+    out = np.zeros(n)
+    if share <= 0 or size <= 0:
+        return out
+    idx = rng.choice(n, size=int(round(share * n)), replace=False)
+    out[idx] = rng.choice([-1.0, 1.0], size=idx.size) * size
+    return out
+
+
 def _quantise(x, step):
     return x if step is None else np.round(x / step) * step
 
@@ -139,6 +150,7 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
             period = float(ripple.get("period_arcsec", 60.0)) * _ARCSEC
             theta = theta + amp * np.sin(2 * np.pi * (position + theta) / period)
         theta = theta + _ar1_noise(rng, len(theta), bench.noise.angle_sd_arcsec * _ARCSEC, bench.noise.angle_ar1)
+        theta = theta + _jumps(rng, len(theta), bench.noise.jump_share, bench.noise.jump_arcsec * _ARCSEC)
         return _quantise(position + theta, res) - position
 
     inputs, drives = [], []

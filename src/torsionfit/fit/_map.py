@@ -106,7 +106,7 @@ def _noise_update(problem: FitProblem, u):
     prev = jnp.where(later, jnp.concatenate([jnp.zeros(1, e.dtype), e[:-1]]), 0.0)
     ar1 = np.asarray(problem.ar1)
     if problem.student_t_dof:
-        return _robust_noise_update(problem, u, e, prev, later, n_pairs)
+        return _robust_noise_update(problem, u, e, prev, later)
     rho = jnp.zeros(problem.n_runs, e.dtype)
     if ar1.any():
         # not demeaned: the likelihood's AR(1) has mean zero, and a run's constant misfit (TE
@@ -129,7 +129,7 @@ def _noise_update(problem: FitProblem, u):
     return jnp.concatenate([log_s, jnp.log(rho_ar1) - jnp.log(RHO_MAX - rho_ar1)])
 
 
-def _robust_noise_update(problem: FitProblem, u, e, prev, later, n_pairs):
+def _robust_noise_update(problem: FitProblem, u, e, prev, later):
     """:func:`_noise_update` under a Student-t likelihood: the EM fixed point of its scale
     mixture, ``ROBUST_NOISE_ITERATIONS`` rounds from the noise at u. Each round weighs every
     innovation by (ν+1)/(ν+r²), r the innovation over its sample's scale (noise, floor and
@@ -143,22 +143,27 @@ def _robust_noise_update(problem: FitProblem, u, e, prev, later, n_pairs):
     eiv = jnp.concatenate(problem.eiv_var)
     shape2 = (jnp.concatenate(problem.noise_shape) ** 2 if problem.noise_shape is not None
               else jnp.ones_like(e))
+    # the samples in the likelihood; those that are not pairs' second (a run's or a kept
+    # stretch's first) enter whitened as Prais–Winsten's first sample, e·√(1 − ρ²)
+    kept = jnp.concatenate(problem.likelihood_keep) if problem.likelihood_keep is not None else jnp.ones(e.shape, bool)
+
+    def innovations(rho):
+        r = problem.per_sample(rho)
+        return jnp.where(later, e - r * prev, e * jnp.sqrt(1.0 - r**2))
 
     def em_round(_, state):
         s2, rho = state
-        innov = e - problem.per_sample(rho) * prev
         scale2 = problem.per_sample(s2) * shape2 + floor2 + eiv
-        weight = jnp.where(later, (nu + 1.0) / (nu + innov**2 / scale2), 0.0)
-        fit = jnp.clip(problem.sum_runs(weight * e * prev) / jnp.maximum(problem.sum_runs(weight * prev**2), 1e-300),
+        weight = jnp.where(kept, (nu + 1.0) / (nu + innovations(rho) ** 2 / scale2), 0.0)
+        pair_weight = jnp.where(later, weight, 0.0)
+        fit = jnp.clip(problem.sum_runs(pair_weight * e * prev) / jnp.maximum(problem.sum_runs(pair_weight * prev**2), 1e-300),
                        0.01, _RHO_CAP)
         rho = jnp.where(ar1, fit, 0.0)
-        innov2 = (e - problem.per_sample(rho) * prev) ** 2
         # the likelihood's stationarity in s², scale² = s²·shape² + floor² + eiv:
         # Σ shape²/scale² · (w·innov²/scale² − 1) = 0, as a multiplicative fixed point (EM's
         # s² = mean(w·innov²/shape²) where floor and eiv vanish)
-        at = shape2 / scale2
-        ratio = problem.sum_runs(jnp.where(later, at * weight * innov2 / scale2, 0.0)) / problem.sum_runs(
-            jnp.where(later, at, 0.0))
+        at = jnp.where(kept, shape2 / scale2, 0.0)
+        ratio = problem.sum_runs(at * weight * innovations(rho) ** 2 / scale2) / problem.sum_runs(at)
         return jnp.maximum(s2 * ratio, 1e-4 * jnp.maximum(problem.floors**2, 1e-26)), rho
 
     s2, rho = jax.lax.fori_loop(0, ROBUST_NOISE_ITERATIONS, em_round,

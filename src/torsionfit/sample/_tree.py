@@ -97,14 +97,19 @@ def _joint_draw(problem, u, key, sample_linear: bool):
 
     The log-density marginalises β under a flat prior, so given u the posterior of β is
     exactly N(β̂(u), A(u)⁻¹) (Gaussian likelihood; the same Laplace approximation the
-    log-density makes for Student-t), A = Σ_r X̃_rᵀ X̃_r with the design matrices whitened as
-    the residuals are. ``sample_linear`` draws β from it — the joint posterior of (u, β);
+    log-density makes for Student-t, A then weighted by the t's (ν+1)/(ν+r²)), A = Σ_r X̃_rᵀ X̃_r
+    with the design matrices whitened as the residuals are. ``sample_linear`` draws β from it — the joint posterior of (u, β);
     otherwise β = β̂(u), ``problem.full_values``'s profile. Returns (β, whitened residuals per
     run, per-sample scales per run, ρ per run)."""
     white, beta, _, scales, rho = problem.profile_all(u)
     if sample_linear and problem.n_linear:
         wx = problem.whitened_design(scales, rho)
-        a = wx.T @ wx
+        if problem.student_t_dof:
+            # the reweighted curvature the profile solved β with (FitProblem._reweighted_linear)
+            nu = problem.student_t_dof
+            a = wx.T @ (((nu + 1.0) / (nu + white**2))[:, None] * wx)
+        else:
+            a = wx.T @ wx
         # the same ridge as ``FitProblem.profile`` (plus a floor for an all-zero design)
         a = a + (1e-10 * jnp.trace(a) / problem.n_linear + 1e-300) * jnp.eye(problem.n_linear)
         chol = jnp.linalg.cholesky(a)
