@@ -5,6 +5,7 @@ the README quotes) and OUT/measured-trail.json.
 
     .venv/bin/python scripts/diagnose_measured.py -o docs/diagnose            # the README's three loops
     .venv/bin/python scripts/diagnose_measured.py -o out/diagnose --all       # all 21 loops
+    .venv/bin/python scripts/diagnose_measured.py --refit-each --units U ...  # what each effect earns alone
 """
 
 import argparse
@@ -44,6 +45,31 @@ def trail_rows(unit: str, doc: dict, seconds: float) -> list[str]:
     return rows
 
 
+def refit_each(units: list[str], args) -> int:
+    """Print, per unit, the ΔELPD ± SE (the trail's comparison) of the base model plus each effect
+    of the unit's validation model (scripts/measured_validation.py) alone over the base model."""
+    from measured_validation import effects_for
+    from torsionfit.diagnose._loop import fit_with
+    from torsionfit.diagnose._selection import compare
+
+    noise = NoiseOptions(ar1={"auto": None, "on": True, "off": False}[args.ar1], student_t_dof=args.student_t)
+    options = DiagnoseOptions(noise=noise)
+    keep = DiagnoseOptions()
+    print("| unit | effect alone | RMSE (arcsec) | ΔELPD ± SE | earns its keep |")
+    print("| --- | --- | ---: | ---: | --- |")
+    for unit in units:
+        campaign = decimate(load_campaign(MANIFESTS / f"{unit}.toml"), args.decimate)
+        base = fit_with(campaign, {}, options, args.seed)
+        print(f"| {unit} | base model | {base.rmse_arcsec:.0f} | | |", flush=True)
+        for name, value in effects_for(unit, argparse.Namespace(effects=None)).items():
+            trial = fit_with(campaign, {name: value}, options, args.seed, warm=base)
+            c = compare(base.score, trial.score)
+            print(f"| | {name} = {json.dumps(value)} | {base.rmse_arcsec:.0f} → {trial.rmse_arcsec:.0f} | "
+                  f"{c.delta:.0f} ± {c.se:.0f} | {'yes' if keep.earns_keep(c.delta, c.se) else 'no'} |", flush=True)
+        jax.clear_caches()
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-o", "--output", type=Path, default=Path("out/diagnose"))
@@ -61,11 +87,16 @@ def main(argv=None) -> int:
     parser.add_argument("--candidates-per-step", type=int, default=DiagnoseOptions().candidates_per_step,
                         help="significant signatures refitted per step, the one that earns the most kept (1: the "
                              "strongest alone, kept when it earns its keep)")
+    parser.add_argument("--refit-each", action="store_true",
+                        help="no trail: refit the base model plus each effect of the unit's validation model alone, "
+                             "whatever its signature, and print the ΔELPD each earns (what the keep rule sees)")
     args = parser.parse_args(argv)
     if not (ROOT.parent / "shared" / "data" / "cycloidal-jv").is_dir():
         print("../shared/data/cycloidal-jv is absent: nothing to diagnose")
         return 0
     units = sorted(p.stem for p in MANIFESTS.glob("*.toml")) if args.all else args.units
+    if args.refit_each:
+        return refit_each(units, args)
     rows, docs = [], {}
     for unit in units:
         t0 = time.perf_counter()

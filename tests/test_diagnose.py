@@ -314,6 +314,46 @@ def two_effects_case(folder: Path) -> Case:
     return Case(campaign, 7, e1 | e2, t1 | t2)
 
 
+# --- an effect behind jumps ------------------------------------------------------------------
+#: isolated jumps of the angle reading (the bench's [noise] jump_share, jump_arcsec): 8 % of the
+#: samples moved by ±60″ against 1″ noise, a residual that moves in jumps as a measured loop's does
+JUMPS = {"jump_share": 0.08, "jump_arcsec": 60.0}
+
+
+@pytest.fixture(scope="module")
+def jumpy_case(tmp_path_factory) -> Case:
+    """The stiffness_nonlinearity case of EFFECT_CASES with JUMPS in its readings (SYNTHETIC)."""
+    effect = "stiffness_nonlinearity"
+    rng = np.random.default_rng(_seed("parameters", effect))
+    effects, truth, drop = EFFECT_CASES[effect](rng)
+    noise = tomllib.loads(BASE.read_text()).get("noise", {}) | JUMPS
+    campaign, _ = _undeclared_campaign(tmp_path_factory.mktemp("jumps"), effects, truth, _seed("noise", effect), drop,
+                                       top={"noise": noise})
+    return Case(campaign, _seed("diagnose", effect) % 1000, effects, truth)
+
+
+def test_behind_jumps_the_effect_still_earns_its_keep(jumpy_case):
+    """The physics is there to find: refitted with the switched-on effect, the fit earns its keep
+    by the trail's own rule (ΔELPD > 10 and > 2 SE) — what the next test's signature misses."""
+    from torsionfit.diagnose._loop import fit_with
+    from torsionfit.diagnose._selection import compare
+
+    options = DiagnoseOptions()
+    base = fit_with(jumpy_case.campaign, {}, options, jumpy_case.seed)
+    trial = fit_with(jumpy_case.campaign, jumpy_case.effects, options, jumpy_case.seed, warm=base)
+    c = compare(base.score, trial.score)
+    assert options.earns_keep(c.delta, c.se), f"ΔELPD {c.delta:.1f} ± {c.se:.1f}"
+
+
+@pytest.mark.xfail(strict=True, reason="known limitation: a signature weighs the residual against its short-lag "
+                   "variogram, which counts the jumps as noise (8× the white noise here), so the effect's signature "
+                   "stays below the threshold though its refit earns its keep (measured on the baseline runin-pos1 "
+                   "loop as well); diagnose says the residual moves in jumps")
+def test_diagnose_finds_an_effect_behind_jumps(jumpy_case):
+    d = _diagnose(jumpy_case.campaign, jumpy_case.seed)
+    assert [s.effect for s in d.steps][:1] == ["stiffness_nonlinearity"], _summary(d)
+
+
 # --- an effect outside the catalog -----------------------------------------------------------
 def ripple_case(folder: Path) -> Case:
     """A sub-division error of the output encoder in base.toml (outside the catalog)."""
