@@ -439,14 +439,12 @@ class FitProblem(eqx.Module):
         least squares from the Gaussian ``beta`` (weights (ν+1)/(ν+r²) of the whitened residual r,
         the EM weights of the t's scale mixture), and A = XᵀWX at the last weights."""
         nu = self.student_t_dof
-        ridge = 1e-10 * jnp.eye(self.n_linear)
-        a = wx.T @ wx
         for _ in range(ROBUST_LINEAR_ITERATIONS):
-            r = we - wx @ beta
-            weight = (nu + 1.0) / (nu + r**2)
+            weight = (nu + 1.0) / (nu + (we - wx @ beta) ** 2)
             a = wx.T @ (weight[:, None] * wx)
-            beta = jnp.linalg.solve(a + ridge * jnp.trace(a) / self.n_linear, wx.T @ (weight * we))
-        return beta, a + ridge * jnp.trace(a) / self.n_linear
+            a = a + 1e-10 * jnp.trace(a) / self.n_linear * jnp.eye(self.n_linear)  # the Gaussian solve's ridge
+            beta = jnp.linalg.solve(a, wx.T @ (weight * we))
+        return beta, a
 
     def objective_residuals(self, white):
         """The whitened residuals as least squares sees them: themselves under the Gaussian
