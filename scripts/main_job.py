@@ -51,8 +51,9 @@ def fit_and_plot(campaign, effects, figure, source, run_index=0, seed=0, noise=N
     budget = {"max_steps": steps, "polish_steps": steps}
     result = fit_map(problem, [r.name for r in hyst.runs], n_starts=3, **budget)
     if noise is not None and noise.cycle_class_noise:
-        problem, result = refit_with_class_noise(problem, result, seed=seed, **budget)
-        problem, result = widen_for_misfit(problem, result)
+        with torsionfit.float64():  # the classes' residuals and the misfit ratio in the fit's precision
+            problem, result = refit_with_class_noise(problem, result, seed=seed, **budget)
+            problem, result = widen_for_misfit(problem, result)
     elapsed = time.perf_counter() - t0
     with torsionfit.float64():  # the model evaluated in the fit's precision
         comps = result.components()
