@@ -335,7 +335,7 @@ def jumpy_case(tmp_path_factory) -> Case:
 def test_behind_jumps_the_effect_still_earns_its_keep(jumpy_case):
     """The physics is there to find: refitted with the switched-on effect, the fit earns its keep
     by the trail's own rule (ΔELPD > 10 and > 2 SE) — what the next test's signature misses."""
-    from torsionfit.diagnose._loop import fit_with
+    from torsionfit.diagnose._loop import fit_with, jump_note
     from torsionfit.diagnose._selection import compare
 
     options = DiagnoseOptions()
@@ -343,6 +343,9 @@ def test_behind_jumps_the_effect_still_earns_its_keep(jumpy_case):
     trial = fit_with(jumpy_case.campaign, jumpy_case.effects, options, jumpy_case.seed, warm=base)
     c = compare(base.score, trial.score)
     assert options.earns_keep(c.delta, c.se), f"ΔELPD {c.delta:.1f} ± {c.se:.1f}"
+    # what diagnose tells the user about such a residual, and what it may cost
+    note = jump_note(base.context.runs)
+    assert note and "moves in jumps" in note and "can stay below the threshold" in note, note
 
 
 @pytest.mark.xfail(strict=True, reason="known limitation: a signature weighs the residual against its short-lag "

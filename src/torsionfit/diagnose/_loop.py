@@ -284,8 +284,8 @@ def jump_note(runs) -> str | None:
     each = ", ".join(f"{name} {robust:.3g}″ against {sd:.3g}″" for name, robust, sd in jumpy)
     return (f"{JUMPS} (stick-slip steps or a gap crossed between samples): its sample-to-sample "
             f"noise read from the median increment is far below the variogram's innovation sd ({each}); the jumps "
-            f"count as noise in the noise estimate and in every signature's test, which are weaker for it, and no "
-            f"catalog effect models them")
+            f"count as noise in the noise estimate and in every signature's test, which are weaker for it (an effect "
+            f"whose refit would earn its keep can stay below the threshold), and no catalog effect models them")
 
 
 def noise_rmse_arcsec(ctx: FitContext) -> float:
