@@ -45,6 +45,11 @@ def trail_rows(unit: str, doc: dict, seconds: float) -> list[str]:
     return rows
 
 
+def noise_options(args) -> NoiseOptions:
+    """The fits' noise under ``--ar1`` and ``--student-t``."""
+    return NoiseOptions(ar1={"auto": None, "on": True, "off": False}[args.ar1], student_t_dof=args.student_t)
+
+
 def refit_each(units: list[str], args) -> int:
     """Print, per unit, the ΔELPD ± SE (the trail's comparison) of the base model plus each effect
     of the unit's validation model (scripts/measured_validation.py) alone over the base model."""
@@ -52,9 +57,7 @@ def refit_each(units: list[str], args) -> int:
     from torsionfit.diagnose._loop import fit_with
     from torsionfit.diagnose._selection import compare
 
-    noise = NoiseOptions(ar1={"auto": None, "on": True, "off": False}[args.ar1], student_t_dof=args.student_t)
-    options = DiagnoseOptions(noise=noise)
-    keep = DiagnoseOptions()
+    options = DiagnoseOptions(noise=noise_options(args))
     print("| unit | effect alone | RMSE (arcsec) | ΔELPD ± SE | earns its keep |")
     print("| --- | --- | ---: | ---: | --- |")
     for unit in units:
@@ -65,7 +68,7 @@ def refit_each(units: list[str], args) -> int:
             trial = fit_with(campaign, {name: value}, options, args.seed, warm=base)
             c = compare(base.score, trial.score)
             print(f"| | {name} = {json.dumps(value)} | {base.rmse_arcsec:.0f} → {trial.rmse_arcsec:.0f} | "
-                  f"{c.delta:.0f} ± {c.se:.0f} | {'yes' if keep.earns_keep(c.delta, c.se) else 'no'} |", flush=True)
+                  f"{c.delta:.0f} ± {c.se:.0f} | {'yes' if options.earns_keep(c.delta, c.se) else 'no'} |", flush=True)
         jax.clear_caches()
     return 0
 
@@ -102,8 +105,7 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         campaign = decimate(load_campaign(MANIFESTS / f"{unit}.toml"), args.decimate)
         say = lambda text, unit=unit: print(f"[{unit}] {text}", file=sys.stderr, flush=True)  # noqa: E731
-        noise = NoiseOptions(ar1={"auto": None, "on": True, "off": False}[args.ar1], student_t_dof=args.student_t)
-        options = DiagnoseOptions(noise=noise, candidates_per_step=args.candidates_per_step)
+        options = DiagnoseOptions(noise=noise_options(args), candidates_per_step=args.candidates_per_step)
         result = diagnose(campaign, options, seed=args.seed, progress=say)
         doc = write_diagnosis(result, campaign, args.output / unit)
         seconds = time.perf_counter() - t0

@@ -47,7 +47,7 @@ def fit_and_plot(campaign, effects, figure, source, run_index=0, seed=0, noise=N
                                free_friction_start=True)
     t0 = time.perf_counter()
     steps = FitOptions().map_steps  # fit_campaign's LM budget
-    problem = build_problem(hyst, model) if noise is None else build_problem(hyst, model, noise)
+    problem = build_problem(hyst, model, noise or NoiseOptions())
     budget = {"max_steps": steps, "polish_steps": steps}
     result = fit_map(problem, [r.name for r in hyst.runs], n_starts=3, **budget)
     if noise is not None and noise.cycle_class_noise:

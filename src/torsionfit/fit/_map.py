@@ -15,7 +15,7 @@ import numpy as np
 import optimistix as optx
 
 from .._x64 import in_float64
-from ._problem import NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD, ROBUST_NOISE_ITERATIONS, FitProblem
+from ._problem import NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD, ROBUST_NOISE_ITERATIONS, FitProblem, student_t_weights
 
 #: the closed-form ρ is capped just inside the density's bound ρ_max (where u would be infinite)
 _RHO_CAP = RHO_MAX * (1.0 - 1e-3)
@@ -154,7 +154,7 @@ def _robust_noise_update(problem: FitProblem, u, e, prev, later):
     def em_round(_, state):
         s2, rho = state
         scale2 = problem.per_sample(s2) * shape2 + floor2 + eiv
-        weight = jnp.where(kept, (nu + 1.0) / (nu + innovations(rho) ** 2 / scale2), 0.0)
+        weight = jnp.where(kept, student_t_weights(innovations(rho) ** 2 / scale2, nu), 0.0)
         pair_weight = jnp.where(later, weight, 0.0)
         fit = jnp.clip(problem.sum_runs(pair_weight * e * prev) / jnp.maximum(problem.sum_runs(pair_weight * prev**2), 1e-300),
                        0.01, _RHO_CAP)

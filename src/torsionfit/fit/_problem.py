@@ -57,6 +57,12 @@ ROBUST_LINEAR_ITERATIONS = 8
 ROBUST_NOISE_ITERATIONS = 30
 
 
+def student_t_weights(r2, nu: float):
+    """The Student-t's scale-mixture (EM / IRLS) weights (ν+1)/(ν+r²) of squared standardised
+    residuals ``r2``: ≈ 1 for a residual at the scale, → 0 for a jump far beyond it."""
+    return (nu + 1.0) / (nu + r2)
+
+
 @dataclass(frozen=True)
 class NoiseOptions:
     """Likelihood options. ``ar1=None`` → AR(1) on for runs with ≥ 100 samples."""
@@ -440,7 +446,7 @@ class FitProblem(eqx.Module):
         the EM weights of the t's scale mixture), and A = XᵀWX at the last weights."""
         nu = self.student_t_dof
         for _ in range(ROBUST_LINEAR_ITERATIONS):
-            weight = (nu + 1.0) / (nu + (we - wx @ beta) ** 2)
+            weight = student_t_weights((we - wx @ beta) ** 2, nu)
             a = wx.T @ (weight[:, None] * wx)
             a = a + 1e-10 * jnp.trace(a) / self.n_linear * jnp.eye(self.n_linear)  # the Gaussian solve's ridge
             beta = jnp.linalg.solve(a, wx.T @ (weight * we))

@@ -74,6 +74,7 @@ import numpy as np
 import xarray as xr
 
 from .._x64 import in_float64
+from ..fit._problem import student_t_weights
 from ._emcee import SampleResult
 
 __all__ = ["MAX_POINTWISE_VALUES", "convergence_summary", "draw_thinning", "load_tree", "pointwise_draw_limit",
@@ -106,8 +107,7 @@ def _joint_draw(problem, u, key, sample_linear: bool):
         wx = problem.whitened_design(scales, rho)
         if problem.student_t_dof:
             # the reweighted curvature the profile solved β with (FitProblem._reweighted_linear)
-            nu = problem.student_t_dof
-            a = wx.T @ (((nu + 1.0) / (nu + white**2))[:, None] * wx)
+            a = wx.T @ (student_t_weights(white**2, problem.student_t_dof)[:, None] * wx)
         else:
             a = wx.T @ wx
         # the same ridge as ``FitProblem.profile`` (plus a floor for an all-zero design)
