@@ -90,6 +90,9 @@ def main(argv=None) -> int:
     parser.add_argument("--candidates-per-step", type=int, default=DiagnoseOptions().candidates_per_step,
                         help="significant signatures refitted per step, the one that earns the most kept (1: the "
                              "strongest alone, kept when it earns its keep)")
+    parser.add_argument("--least-squares-signatures", action="store_true",
+                        help="signatures against the mean-square variogram's noise, which counts the jumps (default: "
+                             "robust, winsorised at the noise read from median increments)")
     parser.add_argument("--refit-each", action="store_true",
                         help="no trail: refit the base model plus each effect of the unit's validation model alone, "
                              "whatever its signature, and print the ΔELPD each earns (what the keep rule sees)")
@@ -105,7 +108,8 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         campaign = decimate(load_campaign(MANIFESTS / f"{unit}.toml"), args.decimate)
         say = lambda text, unit=unit: print(f"[{unit}] {text}", file=sys.stderr, flush=True)  # noqa: E731
-        options = DiagnoseOptions(noise=noise_options(args), candidates_per_step=args.candidates_per_step)
+        options = DiagnoseOptions(noise=noise_options(args), candidates_per_step=args.candidates_per_step,
+                                  robust_signatures=not args.least_squares_signatures)
         result = diagnose(campaign, options, seed=args.seed, progress=say)
         doc = write_diagnosis(result, campaign, args.output / unit)
         seconds = time.perf_counter() - t0
@@ -120,7 +124,8 @@ def main(argv=None) -> int:
     lines = [
         "Closing the loop on measured loops (REAL data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0; "
         f"block means of {args.decimate} samples; rated torque 20 N·m assumed; {NOISE_TEXT[args.ar1]}"
-        + (f", Student-t with ν = {args.student_t:g}" if args.student_t else "") + "), "
+        + (f", Student-t with ν = {args.student_t:g}" if args.student_t else "")
+        + (", least-squares signatures" if args.least_squares_signatures else ", robust signatures") + "), "
         f"`scripts/diagnose_measured.py`, seed {args.seed}.",
         "",
         "| unit | step | log10 p of the signature | RMSE (arcsec) | max \\|residual\\| (arcsec) | ΔELPD ± SE | wall (s) |",

@@ -121,14 +121,15 @@ def test_metrics_json_records_version_and_command_line(tmp_path, capsys):
                                  "command": f"torsionfit metrics {tmp_path / 'c'} --json"}
 
 
-def _noise_seen(tmp_path, monkeypatch, module, function: str, command: str, flag: list, read):
-    """What ``read`` gives of the options ``command`` hands to ``module.function`` (stopped there)."""
+def _noise_seen(tmp_path, monkeypatch, module, function: str, command: str, flag: list, read, part=lambda o: o.noise):
+    """What ``read`` gives of the options' ``part`` (their noise options unless told) that
+    ``command`` hands to ``module.function`` (stopped there)."""
 
     class Seen(Exception):
         pass
 
     def capture(campaign, options, *args, **kwargs):
-        raise Seen(read(options.noise))
+        raise Seen(read(part(options)))
 
     main(["simulate", str(BENCH), "-o", str(tmp_path / "c"), "--quiet"])
     monkeypatch.setattr(module, function, capture)
@@ -150,6 +151,14 @@ def test_diagnose_passes_its_student_t_option_to_every_fit(tmp_path, monkeypatch
 
     assert _noise_seen(tmp_path, monkeypatch, diagnose_module, "diagnose", "diagnose", flag,
                        lambda n: n.student_t_dof) == dof
+
+
+@pytest.mark.parametrize("flag, robust", [([], True), (["--least-squares-signatures"], False)])
+def test_diagnose_passes_its_signature_option(tmp_path, monkeypatch, flag, robust):
+    import torsionfit.diagnose as diagnose_module
+
+    assert _noise_seen(tmp_path, monkeypatch, diagnose_module, "diagnose", "diagnose", flag,
+                       lambda robust_signatures: robust_signatures, part=lambda o: o.robust_signatures) is robust
 
 
 @pytest.mark.parametrize("flag, on", [([], False), (["--class-noise"], True)])

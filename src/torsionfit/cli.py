@@ -166,7 +166,8 @@ def _cmd_diagnose(args) -> int:
     campaign = decimate(load_campaign(args.campaign), args.decimate)
     check_fittable(campaign)  # before the model is built from the rated torque
     options = DiagnoseOptions(initial_effects=_parse_effects(args.with_),
-                              noise=NoiseOptions(ar1=AR1[args.ar1], student_t_dof=args.student_t))
+                              noise=NoiseOptions(ar1=AR1[args.ar1], student_t_dof=args.student_t),
+                              robust_signatures=not args.least_squares_signatures)
     say = _say(args)  # progress once the input is known good: bad input is one line
     say(f"read {args.campaign}: " + _campaign_line(campaign))
     result = diagnose(campaign, options, seed=args.seed, progress=say)
@@ -379,6 +380,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="AR(1) residuals (auto: runs of >= 100 samples); off for measured loops whose misfit is slow")
     p.add_argument("--student-t", type=float, default=None, metavar="DOF",
                    help="Student-t likelihood with DOF degrees of freedom (residuals that move in jumps)")
+    p.add_argument("--least-squares-signatures", action="store_true",
+                   help="signatures on the residuals as they are, against the noise of their mean-square variogram "
+                        "(default: winsorised at the noise read from median increments, robust to jumps)")
     p.set_defaults(func=_cmd_diagnose)
 
     p = sub.add_parser(

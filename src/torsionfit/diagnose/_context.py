@@ -8,6 +8,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from scipy.stats import median_abs_deviation
 
 from .._x64 import in_float64
 from ..fit import FitProblem, MapResult
@@ -37,21 +38,37 @@ class RunView:
     eiv_var: np.ndarray  # the fit's errors-in-variables variance per sample, rad²
     floor: float  # the encoder's quantisation floor, rad
     local_design: np.ndarray | None = None  # nuisance columns of this run alone (a signature's own additions)
+    # for signatures robust to jumps (fit_context(robust=True)): the noise read from median
+    # increments (robust_variogram_noise), as scale per sample and ρ, and the prediction's Jacobian
+    # (N, p) with respect to the fit's physics, the winsorised test's nuisance
+    robust_scale: np.ndarray | None = None
+    robust_rho: float = 0.0
+    physics_design: np.ndarray | None = None
+
+    @property
+    def robust(self) -> bool:
+        return self.robust_scale is not None
 
     def renoised(self, residual: np.ndarray) -> "RunView":
-        """This view with its measurement noise re-estimated (``variogram_noise``) from
-        ``residual`` — e.g. the residual with a found periodic error removed, whose fast
-        swings would otherwise pass for noise."""
+        """This view with its measurement noise re-estimated (``variogram_noise``, and
+        ``robust_variogram_noise`` for a robust view) from ``residual`` — e.g. the residual with a
+        found periodic error removed, whose fast swings would otherwise pass for noise."""
         sd, rho = variogram_noise(residual)
-        return replace(self, scale=np.sqrt(self.eiv_var + max(sd, self.floor) ** 2), rho=rho)
+        out = replace(self, scale=np.sqrt(self.eiv_var + max(sd, self.floor) ** 2), rho=rho)
+        if not self.robust:
+            return out
+        sd, rho = robust_variogram_noise(residual)
+        return replace(out, robust_scale=np.sqrt(self.eiv_var + max(sd, self.floor) ** 2), robust_rho=rho)
 
-    def whiten(self, x: np.ndarray) -> np.ndarray:
-        """The fit's AR(1) whitening with per-sample scales, on a vector or the columns of a matrix."""
+    def whiten(self, x: np.ndarray, robust: bool = False) -> np.ndarray:
+        """The AR(1) whitening with per-sample scales, on a vector or the columns of a matrix;
+        ``robust``: with the noise read from median increments."""
+        scale, rho = (self.robust_scale, self.robust_rho) if robust else (self.scale, self.rho)
         x = np.asarray(x, float)
         out = np.empty_like(x)
-        out[:1] = x[:1] * np.sqrt(1.0 - self.rho**2)
-        out[1:] = x[1:] - self.rho * x[:-1]
-        return out / (self.scale[:, None] if x.ndim == 2 else self.scale)
+        out[:1] = x[:1] * np.sqrt(1.0 - rho**2)
+        out[1:] = x[1:] - rho * x[:-1]
+        return out / (scale[:, None] if x.ndim == 2 else scale)
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,8 +159,27 @@ def variogram_noise(residual: np.ndarray) -> tuple[float, float]:
     return float(np.sqrt(marginal_var * (1.0 - rho**2))) or 1e-12, rho
 
 
+def robust_variogram_noise(residual: np.ndarray) -> tuple[float, float]:
+    """(innovation sd, ρ) as :func:`variogram_noise`, with each lag's semivariance read from the
+    median absolute increment instead of the mean square: a residual that moves in jumps
+    (stick-slip steps, outliers, a gap crossed between samples) leaves most increments at the
+    measurement noise, and the median reads them — the mean square counts every jump as noise."""
+    e = np.asarray(residual, float)
+    if e.size < 8:
+        return float(median_abs_deviation(e, scale="normal")) or 1e-12, 0.0
+    g1 = 0.5 * float(median_abs_deviation(np.diff(e), scale="normal")) ** 2
+    g2 = 0.5 * float(median_abs_deviation(e[2:] - e[:-2], scale="normal")) ** 2
+    if not g1 > 0:  # below the encoder step most increments are 0: the caller's floor decides
+        return 1e-12, 0.0
+    rho = float(np.clip(g2 / g1 - 1.0, 0.0, 0.95))
+    return float(np.sqrt(g1 / (1.0 - rho) * (1.0 - rho**2))), rho
+
+
 @in_float64
-def fit_context(campaign: Campaign, effects: dict, map_result: MapResult) -> FitContext:
+def fit_context(campaign: Campaign, effects: dict, map_result: MapResult, robust: bool = False) -> FitContext:
+    """The views of ``map_result``'s residuals; ``robust``: with their noise read from median
+    increments as well (:func:`robust_variogram_noise`) and the fit's physics directions, for
+    signatures robust to jumps (see ``regression_evidence``)."""
     problem = map_result.problem
     u = jnp.asarray(map_result.u)
     directions = None
@@ -155,11 +191,15 @@ def fit_context(campaign: Campaign, effects: dict, map_result: MapResult) -> Fit
     views = []
     noise = []
     for i in range(len(campaign.runs)):
-        sd, r = variogram_noise(np.asarray(problem.y[i]) - np.asarray(preds[i]))
+        residual = np.asarray(problem.y[i]) - np.asarray(preds[i])
+        sd, r = variogram_noise(residual)
         # keep the fit's per-sample errors-in-variables part, swap its noise level for the variogram's
         eiv = np.maximum(np.asarray(scales[i]) ** 2 - float(sigma_fit[i]) ** 2, 0.0)
         floor = float(problem.floors[i])
         noise.append((np.sqrt(eiv + max(sd, floor) ** 2), r, eiv, floor))
+        if robust:
+            sd, r = robust_variogram_noise(residual)
+            noise[-1] += (np.sqrt(eiv + max(sd, floor) ** 2), r)
     for i, run in enumerate(campaign.runs):
         y = np.asarray(problem.y[i])
         f = np.asarray(preds[i])
@@ -188,5 +228,13 @@ def fit_context(campaign: Campaign, effects: dict, map_result: MapResult) -> Fit
                 loading_rate_Nm_per_s=None, sensitivity=np.zeros(n), design=np.asarray(problem.design[i]),
                 eiv_var=noise[i][2], floor=noise[i][3],
             ))
+    if robust:
+        # the fit's physics are the nuisance of a winsorised test as well: the least-squares fit
+        # put them where the jumps pull, and a refit robust to the jumps may move them
+        directions = directions if directions is not None else _physics_directions(problem, u)
+        for i, v in enumerate(views):
+            jac = [np.asarray(a, float).reshape(len(v.residual), -1) for a in directions[1][i].values()]
+            views[i] = replace(v, robust_scale=noise[i][4], robust_rho=noise[i][5],
+                               physics_design=np.concatenate(jac, axis=1) if jac else np.zeros((len(v.residual), 0)))
     return FitContext(campaign=campaign, effects=dict(effects), map_result=map_result, runs=tuple(views),
                       rated_torque_Nm=campaign.reducer.rated_torque_Nm, computed_directions=directions)

@@ -25,7 +25,7 @@ from ..units import ANGLE_UNITS
 from ._catalog import CATALOG, Effect
 from ._context import FitContext, fit_context, variogram_noise
 from ._selection import Comparison, Score, compare, score
-from ._signature import Evidence, regression_evidence
+from ._signature import HUBER_SDS, Evidence, regression_evidence
 
 ARCSEC = ANGLE_UNITS["arcsec"]
 
@@ -43,6 +43,9 @@ class DiagnoseOptions:
     finding_min_explained: float = 0.05  # it explains more than this share of the residual variance …
     finding_min_excess: float = 0.10  # … and the final RMSE exceeds the noise estimate by more than this
     n_starts: int = 3
+    #: signatures robust to jumps: the noise read from median increments and every test on the
+    #: residual winsorised at it (see fit_context); False: the variogram's mean-square noise
+    robust_signatures: bool = True
     noise: NoiseOptions = NoiseOptions()
     catalog: tuple = CATALOG
 
@@ -120,7 +123,7 @@ def fit_with(campaign: Campaign, effects: dict, options: DiagnoseOptions, seed: 
                     found[layout.index(p.name)] = float(inverse(p.constraint, start_values[p.name]))
             starts = np.stack([starts[0], found])
     result = fit_map(problem, names, n_starts=options.n_starts, seed=seed, warm_starts=starts)
-    ctx = fit_context(campaign, effects, result)
+    ctx = fit_context(campaign, effects, result, robust=options.robust_signatures)
     scored = score(problem, result, options.loo_draws, seed)
     resid = np.concatenate([r.residual for r in ctx.runs]) / ARCSEC
     per_run = {r.name: float(np.sqrt(np.mean((r.residual / ARCSEC) ** 2))) for r in ctx.runs}
@@ -282,10 +285,15 @@ def jump_note(runs) -> str | None:
     if not jumpy:
         return None
     each = ", ".join(f"{name} {robust:.3g}″ against {sd:.3g}″" for name, robust, sd in jumpy)
-    return (f"{JUMPS} (stick-slip steps or a gap crossed between samples): its sample-to-sample "
-            f"noise read from the median increment is far below the variogram's innovation sd ({each}); the jumps "
-            f"count as noise in the noise estimate and in every signature's test, which are weaker for it (an effect "
-            f"whose refit would earn its keep can stay below the threshold), and no catalog effect models them")
+    head = (f"{JUMPS} (stick-slip steps or a gap crossed between samples): its sample-to-sample noise read from "
+            f"the median increment is far below the variogram's innovation sd ({each}); ")
+    if any(getattr(r, "robust", False) for r in runs):
+        return head + (f"each signature is tested winsorised as well, against the noise read from the median increments "
+                       f"with a jump weighing no more than {HUBER_SDS} noise sds; the noise estimate is that reading, the "
+                       f"RMSE counts the jumps in full, and no catalog effect models them")
+    return head + ("the jumps count as noise in the noise estimate and in every signature's test, which are weaker "
+                   "for it (an effect whose refit would earn its keep can stay below the threshold), and no catalog "
+                   "effect models them")
 
 
 def noise_rmse_arcsec(ctx: FitContext) -> float:
@@ -301,7 +309,9 @@ def noise_rmse_arcsec(ctx: FitContext) -> float:
     of the residual, never more."""
     var = []
     for r in ctx.runs:
-        v = np.maximum(r.scale**2 - r.eiv_var, 0.0) / (1.0 - r.rho**2)
+        # a robust view's noise is the one read from median increments, which the jumps do not inflate
+        scale, rho = (r.robust_scale, r.robust_rho) if getattr(r, "robust", False) else (r.scale, r.rho)
+        v = np.maximum(scale**2 - r.eiv_var, 0.0) / (1.0 - rho**2)
         cap = float(np.mean(np.asarray(r.residual, float) ** 2))
         var.append(v * min(1.0, cap / float(np.mean(v))) if np.mean(v) > 0 else v)
     return float(np.sqrt(np.mean(np.concatenate(var)))) / ARCSEC

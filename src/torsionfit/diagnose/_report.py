@@ -45,6 +45,7 @@ def diagnose_json(d: Diagnosis, campaign) -> dict:
         "unexplained_description": d.unexplained_description,
         "notes": list(d.notes),
         "noise_estimate": d.noise_arcsec,
+        "signature_test": "winsorised" if any(r.robust for r in d.final.context.runs) else "least-squares",
         "leftovers": [_evidence(e) for e in d.leftovers],
         "rmse_base": d.base.rmse_arcsec,
         "rmse_final": d.final.rmse_arcsec,
@@ -211,8 +212,10 @@ def write_figures(d: Diagnosis, campaign, folder) -> list:
         paths.append(path)
     fig, axes = plt.subplots(n, 1, figsize=(8, 1.6 * n + 1), squeeze=False, constrained_layout=True)
     _residual_panels(axes[:, 0], d.final, "final model" + (f" (+ {', '.join(s.effect for s in d.steps)})" if d.steps else " (base)"))
-    # "nothing left" over a residual of jumps would read as a good fit: the title says the noise is the jumps
-    jumps = "; " + JUMPS + ", counted as noise (see the notes)" if any(n.startswith(JUMPS) for n in d.notes) else ""
+    # "nothing left" over a residual of jumps would read as a good fit: the title says it moves in jumps
+    robust = any(getattr(r, "robust", False) for r in d.final.context.runs)
+    jumps = ("; " + JUMPS + (", weighed down in the tests" if robust else ", counted as noise") + " (see the notes)"
+             if any(n.startswith(JUMPS) for n in d.notes) else "")
     fig.suptitle(("unexplained: " + d.unexplained_description if d.unexplained else _NOTHING_LEFT + jumps)[:160]
                  + f"\n{source}", fontsize=7)
     path = folder / "final-residuals.png"
