@@ -91,8 +91,8 @@ def main(argv=None) -> int:
                         help="significant signatures refitted per step, the one that earns the most kept (1: the "
                              "strongest alone, kept when it earns its keep)")
     parser.add_argument("--least-squares-signatures", action="store_true",
-                        help="signatures against the mean-square variogram's noise, which counts the jumps (default: "
-                             "robust, winsorised at the noise read from median increments)")
+                        help="signatures by least squares alone, against the mean-square variogram's noise, which counts "
+                             "the jumps (default: where a residual moves in jumps, each also tested winsorised)")
     parser.add_argument("--refit-each", action="store_true",
                         help="no trail: refit the base model plus each effect of the unit's validation model alone, "
                              "whatever its signature, and print the ΔELPD each earns (what the keep rule sees)")

@@ -297,6 +297,7 @@ def test_clean_campaign_adds_nothing(tmp_path, seed):
     assert d.steps == [], _summary(d)
     assert not d.unexplained, _summary(d)
     assert d.final.rmse_arcsec <= AT_NOISE
+    assert not any(r.robust for r in d.final.context.runs)  # no jumps: least squares alone
     _check_finite(d)
 
 
@@ -346,6 +347,7 @@ def test_behind_jumps_the_effect_still_earns_its_keep(jumpy_case):
     trial = fit_with(jumpy_case.campaign, jumpy_case.effects, options, jumpy_case.seed, warm=base)
     c = compare(base.score, trial.score)
     assert options.earns_keep(c.delta, c.se), f"ΔELPD {c.delta:.1f} ± {c.se:.1f}"
+    assert all(r.robust for r in base.context.runs)  # the residual moves in jumps: tested winsorised as well
     least_squares = fit_context(jumpy_case.campaign, {}, base.map_result, robust=False)
     p = {robust: {e.name: ev for e, ev in _signatures(ctx, options, set())}["stiffness_nonlinearity"]
          for robust, ctx in ((False, least_squares), (True, base.context))}

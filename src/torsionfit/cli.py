@@ -381,8 +381,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--student-t", type=float, default=None, metavar="DOF",
                    help="Student-t likelihood with DOF degrees of freedom (residuals that move in jumps)")
     p.add_argument("--least-squares-signatures", action="store_true",
-                   help="signatures on the residuals as they are, against the noise of their mean-square variogram "
-                        "(default: winsorised at the noise read from median increments, robust to jumps)")
+                   help="signatures by least squares alone, against the noise of the residuals' mean-square variogram "
+                        "(default: where a residual moves in jumps, each also tested winsorised at the noise read from median increments)")
     p.set_defaults(func=_cmd_diagnose)
 
     p = sub.add_parser(

@@ -175,11 +175,36 @@ def robust_variogram_noise(residual: np.ndarray) -> tuple[float, float]:
     return float(np.sqrt(g1 / (1.0 - rho) * (1.0 - rho**2))), rho
 
 
+#: a run's residual "moves in jumps" when the robust sd of its increments (over √2) is below this
+#: share of the variogram's innovation sd: 1 for white noise, 1/√(1 + ρ) ≈ 0.73 for AR(1) noise at
+#: ρ = 0.9, about the same with a smooth misfit on top; 0.14 on a measured loop's block means
+JUMP_RATIO = 0.5
+
+
+def jump_reading(residual: np.ndarray, floor: float) -> tuple[float, float]:
+    """(the sample-to-sample noise read from the median absolute increment, floored by the
+    encoder's quantisation ``floor``; the mean-square variogram's innovation sd), both rad. Below
+    the encoder step the median increment is 0 and the occasional step of the quantisation is no
+    jump: hence the floor."""
+    e = np.asarray(residual, float)
+    if e.size < 8:
+        return 0.0, 0.0
+    robust = max(float(median_abs_deviation(np.diff(e), scale="normal")) / np.sqrt(2.0), float(floor))
+    return robust, variogram_noise(e)[0]
+
+
+def moves_in_jumps(robust: float, sd: float) -> bool:
+    """Whether a residual whose :func:`jump_reading` is (``robust``, ``sd``) moves in jumps."""
+    return sd > 0 and robust < JUMP_RATIO * sd
+
+
 @in_float64
 def fit_context(campaign: Campaign, effects: dict, map_result: MapResult, robust: bool = False) -> FitContext:
-    """The views of ``map_result``'s residuals; ``robust``: with their noise read from median
-    increments as well (:func:`robust_variogram_noise`) and the fit's physics directions, for
-    signatures robust to jumps (see ``regression_evidence``)."""
+    """The views of ``map_result``'s residuals; ``robust``: when a run's residual moves in jumps
+    (:func:`moves_in_jumps`), every view with its noise read from median increments as well
+    (:func:`robust_variogram_noise`) and the fit's physics directions, for signatures robust to
+    the jumps (see ``regression_evidence``). Without jumps the least-squares test is the
+    efficient one, and the winsorised test reads a large misfit as jumps."""
     problem = map_result.problem
     u = jnp.asarray(map_result.u)
     directions = None
@@ -197,9 +222,8 @@ def fit_context(campaign: Campaign, effects: dict, map_result: MapResult, robust
         eiv = np.maximum(np.asarray(scales[i]) ** 2 - float(sigma_fit[i]) ** 2, 0.0)
         floor = float(problem.floors[i])
         noise.append((np.sqrt(eiv + max(sd, floor) ** 2), r, eiv, floor))
-        if robust:
-            sd, r = robust_variogram_noise(residual)
-            noise[-1] += (np.sqrt(eiv + max(sd, floor) ** 2), r)
+        sd, r = robust_variogram_noise(residual)
+        noise[-1] += (np.sqrt(eiv + max(sd, floor) ** 2), r, moves_in_jumps(*jump_reading(residual, floor)))
     for i, run in enumerate(campaign.runs):
         y = np.asarray(problem.y[i])
         f = np.asarray(preds[i])
@@ -228,7 +252,7 @@ def fit_context(campaign: Campaign, effects: dict, map_result: MapResult, robust
                 loading_rate_Nm_per_s=None, sensitivity=np.zeros(n), design=np.asarray(problem.design[i]),
                 eiv_var=noise[i][2], floor=noise[i][3],
             ))
-    if robust:
+    if robust and any(n[6] for n in noise):
         # the fit's physics are the nuisance of a winsorised test as well: the least-squares fit
         # put them where the jumps pull, and a refit robust to the jumps may move them
         directions = directions if directions is not None else _physics_directions(problem, u)

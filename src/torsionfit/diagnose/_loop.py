@@ -13,7 +13,6 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.stats import median_abs_deviation
 
 from .._x64 import in_float64
 from ..fit import NoiseOptions, build_problem, fit_map
@@ -23,7 +22,7 @@ from ..io import Campaign
 from ..model import model_with_effects
 from ..units import ANGLE_UNITS
 from ._catalog import CATALOG, Effect
-from ._context import FitContext, fit_context, variogram_noise
+from ._context import FitContext, fit_context, jump_reading, moves_in_jumps
 from ._selection import Comparison, Score, compare, score
 from ._signature import HUBER_SDS, Evidence, regression_evidence
 
@@ -43,8 +42,9 @@ class DiagnoseOptions:
     finding_min_explained: float = 0.05  # it explains more than this share of the residual variance …
     finding_min_excess: float = 0.10  # … and the final RMSE exceeds the noise estimate by more than this
     n_starts: int = 3
-    #: signatures robust to jumps: the noise read from median increments and every test on the
-    #: residual winsorised at it (see fit_context); False: the variogram's mean-square noise
+    #: signatures robust to jumps: when a residual moves in jumps, each also tested winsorised at the
+    #: noise read from median increments (see fit_context, regression_evidence); False: by least
+    #: squares alone, against the mean-square variogram's noise
     robust_signatures: bool = True
     noise: NoiseOptions = NoiseOptions()
     catalog: tuple = CATALOG
@@ -256,10 +256,6 @@ def judge_leftovers(leftovers: list, rmse_arcsec: float, noise_arcsec: float, op
     return findings, notes
 
 
-#: a run's residual "moves in jumps" when the robust sd of its increments (over √2) is below this
-#: share of the variogram's innovation sd: 1 for white noise, 1/√(1 + ρ) ≈ 0.73 for AR(1) noise at
-#: ρ = 0.9, about the same with a smooth misfit on top; 0.14 on a measured loop's block means
-JUMP_RATIO = 0.5
 #: how the note on such a residual begins (the residual figure's title points to it)
 JUMPS = "the residual moves in jumps"
 
@@ -274,13 +270,8 @@ def jump_note(runs) -> str | None:
     increment is 0 and the occasional step of the quantisation is no jump."""
     jumpy = []
     for r in runs:
-        e = np.asarray(r.residual, float)
-        if e.size < 8:
-            continue
-        d = np.diff(e)
-        robust = max(float(median_abs_deviation(d, scale="normal")) / np.sqrt(2.0), float(r.floor))
-        sd, _ = variogram_noise(e)
-        if sd > 0 and robust < JUMP_RATIO * sd:
+        robust, sd = jump_reading(r.residual, r.floor)
+        if moves_in_jumps(robust, sd):
             jumpy.append((r.name, robust / ARCSEC, sd / ARCSEC))
     if not jumpy:
         return None

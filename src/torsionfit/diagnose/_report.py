@@ -45,7 +45,7 @@ def diagnose_json(d: Diagnosis, campaign) -> dict:
         "unexplained_description": d.unexplained_description,
         "notes": list(d.notes),
         "noise_estimate": d.noise_arcsec,
-        "signature_test": "winsorised" if any(r.robust for r in d.final.context.runs) else "least-squares",
+        "signature_test": "least-squares and winsorised" if any(r.robust for r in d.final.context.runs) else "least-squares",
         "leftovers": [_evidence(e) for e in d.leftovers],
         "rmse_base": d.base.rmse_arcsec,
         "rmse_final": d.final.rmse_arcsec,
