@@ -55,10 +55,13 @@ class RunView:
         found periodic error removed, whose fast swings would otherwise pass for noise."""
         sd, rho = variogram_noise(residual)
         out = replace(self, scale=np.sqrt(self.eiv_var + max(sd, self.floor) ** 2), rho=rho)
-        if not self.robust:
-            return out
+        return out.with_robust_noise(residual) if self.robust else out
+
+    def with_robust_noise(self, residual: np.ndarray) -> "RunView":
+        """This view with the noise of ``residual`` read from median increments as well
+        (``robust_variogram_noise``, floored by the encoder, the errors in variables kept)."""
         sd, rho = robust_variogram_noise(residual)
-        return replace(out, robust_scale=np.sqrt(self.eiv_var + max(sd, self.floor) ** 2), robust_rho=rho)
+        return replace(self, robust_scale=np.sqrt(self.eiv_var + max(sd, self.floor) ** 2), robust_rho=rho)
 
     def whiten(self, x: np.ndarray, robust: bool = False) -> np.ndarray:
         """The AR(1) whitening with per-sample scales, on a vector or the columns of a matrix;
@@ -152,11 +155,15 @@ def variogram_noise(residual: np.ndarray) -> tuple[float, float]:
     e = np.asarray(residual, float)
     if e.size < 8:
         return float(np.std(e)) or 1e-12, 0.0
-    g1 = 0.5 * np.mean(np.diff(e) ** 2)
-    g2 = 0.5 * np.mean((e[2:] - e[:-2]) ** 2)
-    rho = float(np.clip(g2 / max(g1, 1e-300) - 1.0, 0.0, 0.95))
-    marginal_var = g1 / (1.0 - rho)
-    return float(np.sqrt(marginal_var * (1.0 - rho**2))) or 1e-12, rho
+    return _ar1_noise(0.5 * np.mean(np.diff(e) ** 2), 0.5 * np.mean((e[2:] - e[:-2]) ** 2))
+
+
+def _ar1_noise(g1: float, g2: float) -> tuple[float, float]:
+    """(innovation sd, ρ) of AR(1) noise with semivariances γ(1) = ``g1`` and γ(2) = ``g2``."""
+    if not g1 > 0:  # a constant residual, or below the encoder step: the caller's floor decides
+        return 1e-12, 0.0
+    rho = float(np.clip(g2 / g1 - 1.0, 0.0, 0.95))
+    return float(np.sqrt(g1 / (1.0 - rho) * (1.0 - rho**2))) or 1e-12, rho
 
 
 def robust_variogram_noise(residual: np.ndarray) -> tuple[float, float]:
@@ -167,12 +174,8 @@ def robust_variogram_noise(residual: np.ndarray) -> tuple[float, float]:
     e = np.asarray(residual, float)
     if e.size < 8:
         return float(median_abs_deviation(e, scale="normal")) or 1e-12, 0.0
-    g1 = 0.5 * float(median_abs_deviation(np.diff(e), scale="normal")) ** 2
-    g2 = 0.5 * float(median_abs_deviation(e[2:] - e[:-2], scale="normal")) ** 2
-    if not g1 > 0:  # below the encoder step most increments are 0: the caller's floor decides
-        return 1e-12, 0.0
-    rho = float(np.clip(g2 / g1 - 1.0, 0.0, 0.95))
-    return float(np.sqrt(g1 / (1.0 - rho) * (1.0 - rho**2))), rho
+    return _ar1_noise(0.5 * float(median_abs_deviation(np.diff(e), scale="normal")) ** 2,
+                      0.5 * float(median_abs_deviation(e[2:] - e[:-2], scale="normal")) ** 2)
 
 
 #: a run's residual "moves in jumps" when the robust sd of its increments (over √2) is below this
@@ -216,14 +219,11 @@ def fit_context(campaign: Campaign, effects: dict, map_result: MapResult, robust
     views = []
     noise = []
     for i in range(len(campaign.runs)):
-        residual = np.asarray(problem.y[i]) - np.asarray(preds[i])
-        sd, r = variogram_noise(residual)
+        sd, r = variogram_noise(np.asarray(problem.y[i]) - np.asarray(preds[i]))
         # keep the fit's per-sample errors-in-variables part, swap its noise level for the variogram's
         eiv = np.maximum(np.asarray(scales[i]) ** 2 - float(sigma_fit[i]) ** 2, 0.0)
         floor = float(problem.floors[i])
         noise.append((np.sqrt(eiv + max(sd, floor) ** 2), r, eiv, floor))
-        sd, r = robust_variogram_noise(residual)
-        noise[-1] += (np.sqrt(eiv + max(sd, floor) ** 2), r, moves_in_jumps(*jump_reading(residual, floor)))
     for i, run in enumerate(campaign.runs):
         y = np.asarray(problem.y[i])
         f = np.asarray(preds[i])
@@ -252,13 +252,13 @@ def fit_context(campaign: Campaign, effects: dict, map_result: MapResult, robust
                 loading_rate_Nm_per_s=None, sensitivity=np.zeros(n), design=np.asarray(problem.design[i]),
                 eiv_var=noise[i][2], floor=noise[i][3],
             ))
-    if robust and any(n[6] for n in noise):
+    if robust and any(moves_in_jumps(*jump_reading(v.residual, v.floor)) for v in views):
         # the fit's physics are the nuisance of a winsorised test as well: the least-squares fit
         # put them where the jumps pull, and a refit robust to the jumps may move them
         directions = directions if directions is not None else _physics_directions(problem, u)
         for i, v in enumerate(views):
             jac = [np.asarray(a, float).reshape(len(v.residual), -1) for a in directions[1][i].values()]
-            views[i] = replace(v, robust_scale=noise[i][4], robust_rho=noise[i][5],
-                               physics_design=np.concatenate(jac, axis=1) if jac else np.zeros((len(v.residual), 0)))
+            views[i] = replace(v, physics_design=np.concatenate(jac, axis=1) if jac else np.zeros((len(v.residual), 0))
+                               ).with_robust_noise(v.residual)
     return FitContext(campaign=campaign, effects=dict(effects), map_result=map_result, runs=tuple(views),
                       rated_torque_Nm=campaign.reducer.rated_torque_Nm, computed_directions=directions)

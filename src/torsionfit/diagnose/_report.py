@@ -213,7 +213,7 @@ def write_figures(d: Diagnosis, campaign, folder) -> list:
     fig, axes = plt.subplots(n, 1, figsize=(8, 1.6 * n + 1), squeeze=False, constrained_layout=True)
     _residual_panels(axes[:, 0], d.final, "final model" + (f" (+ {', '.join(s.effect for s in d.steps)})" if d.steps else " (base)"))
     # "nothing left" over a residual of jumps would read as a good fit: the title says it moves in jumps
-    robust = any(getattr(r, "robust", False) for r in d.final.context.runs)
+    robust = any(r.robust for r in d.final.context.runs)
     jumps = ("; " + JUMPS + (", weighed down in the tests" if robust else ", counted as noise") + " (see the notes)"
              if any(n.startswith(JUMPS) for n in d.notes) else "")
     fig.suptitle(("unexplained: " + d.unexplained_description if d.unexplained else _NOTHING_LEFT + jumps)[:160]

@@ -96,14 +96,15 @@ def _huber_residual(w: np.ndarray, q: np.ndarray, iterations: int = 100) -> np.n
     return r
 
 
-def _winsorised_test(w: np.ndarray, x: np.ndarray, nuisance: np.ndarray, lengths: list) -> tuple[np.ndarray, float, float]:
+def _winsorised_test(w: np.ndarray, x: np.ndarray, q: np.ndarray, lengths: list) -> tuple[np.ndarray, float, float]:
     """(coefficients, Δχ², explained share) of the columns ``x`` (nuisance projected out) on the
-    whitened residual ``w`` after a Huber regression on the nuisance, clipped at ±HUBER_SDS: the
+    whitened residual ``w`` after a Huber regression on the nuisance (orthonormal columns ``q``;
+    ``lengths``: the runs' sample counts, in order), clipped at ±HUBER_SDS: the
     least-squares test on a winsorised residual (a score test of the Huber M-estimator), in
     units of the winsorised noise's variance — read from the residual's increments, per run, as
     the variogram reads the noise (a smooth misfit hardly moves them; the jumps do, so they count
     there at their clipped weight)."""
-    r = _huber_residual(w, nuisance)
+    r = _huber_residual(w, q)
     psi = np.clip(r, -HUBER_SDS, HUBER_SDS)
     bounds = np.cumsum([0, *lengths])
     steps = np.concatenate([np.diff(r[a:b]) / np.sqrt(2.0) for a, b in zip(bounds[:-1], bounds[1:])])
