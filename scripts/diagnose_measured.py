@@ -4,11 +4,12 @@ write OUT/<unit>/diagnose.json with its figures, and OUT/measured-trail.md (the 
 the README quotes) and OUT/measured-trail.json.
 
     .venv/bin/python scripts/diagnose_measured.py -o docs/diagnose            # the README's three loops
-    .venv/bin/python scripts/diagnose_measured.py -o out/diagnose --all       # all 21 loops
+    .venv/bin/python scripts/diagnose_measured.py -o out/diagnose --all --jobs 2  # all 21 loops
     .venv/bin/python scripts/diagnose_measured.py --refit-each --units U ...  # what each effect earns alone
 """
 
 import argparse
+import functools
 import json
 import sys
 import time
@@ -18,6 +19,7 @@ import jax
 
 from torsionfit.diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
 from torsionfit.fit import NoiseOptions
+from torsionfit.batch import executor
 from torsionfit.io import decimate, load_campaign
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,6 +75,26 @@ def refit_each(units: list[str], args) -> int:
     return 0
 
 
+def diagnose_unit(unit: str, args) -> tuple[list[str], dict, str]:
+    """Run ``diagnose`` on one unit and write OUT/<unit>/: (its trail rows, its entry of
+    measured-trail.json, its summary text)."""
+    t0 = time.perf_counter()
+    campaign = decimate(load_campaign(MANIFESTS / f"{unit}.toml"), args.decimate)
+    say = lambda text: print(f"[{unit}] {text}", file=sys.stderr, flush=True)  # noqa: E731
+    options = DiagnoseOptions(noise=noise_options(args), candidates_per_step=args.candidates_per_step,
+                              robust_signatures=not args.least_squares_signatures)
+    result = diagnose(campaign, options, seed=args.seed, progress=say)
+    doc = write_diagnosis(result, campaign, args.output / unit)
+    seconds = time.perf_counter() - t0
+    entry = {k: doc[k] for k in ("label", "added", "unexplained", "unexplained_description", "rmse_base", "rmse_final")}
+    entry["steps"] = [{k: s[k] for k in ("effect", "rmse_before", "rmse_after", "delta_elpd", "delta_elpd_se")} for s in doc["steps"]]
+    entry["seconds"] = seconds
+    # each loop compiles its own programs (its lengths): kept across 21 loops they exhausted
+    # the compiler's memory at the 13th
+    jax.clear_caches()
+    return trail_rows(unit, doc, seconds), entry, summary_text(doc)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-o", "--output", type=Path, default=Path("out/diagnose"))
@@ -80,6 +102,7 @@ def main(argv=None) -> int:
     parser.add_argument("--all", action="store_true", help="every measured loop (21)")
     parser.add_argument("--decimate", type=int, default=16, help="block means of N samples (the loops are sampled at ~400 Hz)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--jobs", type=int, default=1, help="units diagnosed in this many processes at once")
     # iid, as the validation: with AR(1) noise the coefficient comes out near 1 on these files and a
     # smooth, ramp-long misfit costs (and an effect that removes it earns) little ELPD
     parser.add_argument("--ar1", choices=("auto", "on", "off"), default="off",
@@ -104,23 +127,13 @@ def main(argv=None) -> int:
     if args.refit_each:
         return refit_each(units, args)
     rows, docs = [], {}
-    for unit in units:
-        t0 = time.perf_counter()
-        campaign = decimate(load_campaign(MANIFESTS / f"{unit}.toml"), args.decimate)
-        say = lambda text, unit=unit: print(f"[{unit}] {text}", file=sys.stderr, flush=True)  # noqa: E731
-        options = DiagnoseOptions(noise=noise_options(args), candidates_per_step=args.candidates_per_step,
-                                  robust_signatures=not args.least_squares_signatures)
-        result = diagnose(campaign, options, seed=args.seed, progress=say)
-        doc = write_diagnosis(result, campaign, args.output / unit)
-        seconds = time.perf_counter() - t0
-        print(summary_text(doc), file=sys.stderr)
-        docs[unit] = {k: doc[k] for k in ("label", "added", "unexplained", "unexplained_description", "rmse_base", "rmse_final")}
-        docs[unit]["steps"] = [{k: s[k] for k in ("effect", "rmse_before", "rmse_after", "delta_elpd", "delta_elpd_se")} for s in doc["steps"]]
-        docs[unit]["seconds"] = seconds
-        rows += trail_rows(unit, doc, seconds)
-        # each loop compiles its own programs (its lengths): kept across 21 loops they exhausted
-        # the compiler's memory at the 13th
-        jax.clear_caches()
+    # units in processes of their own (one JAX runtime and one XLA thread each, pinned to a CPU)
+    with executor(workers=args.jobs) as run_map:
+        results = run_map(functools.partial(diagnose_unit, args=args), units)
+        for unit, (unit_rows, entry, summary) in zip(units, results):
+            print(summary, file=sys.stderr)
+            rows += unit_rows
+            docs[unit] = entry
     lines = [
         "Closing the loop on measured loops (REAL data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0; "
         f"block means of {args.decimate} samples; rated torque 20 N·m assumed; {NOISE_TEXT[args.ar1]}"

@@ -40,7 +40,7 @@ the loading compliance are compared with the authors' numbers, read from the dat
 """
 
 import argparse
-import contextlib
+import functools
 import json
 import re
 import sys
@@ -53,6 +53,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import torsionfit  # noqa: F401
+from torsionfit.batch import executor
 from torsionfit.fit import NoiseOptions, model_inputs
 from torsionfit.fit._problem import cycle_amplitude_shape
 from torsionfit.io import decimate, load_campaign
@@ -906,16 +907,9 @@ def _main(args) -> int:
     units = [unit for unit in units if reasons[unit] is None]
     args.output.mkdir(parents=True, exist_ok=True)
     kept = _kept_rows(args, units)  # checked before any fit
-    with contextlib.ExitStack() as stack:
-        if args.jobs > 1:
-            # units in separate processes (one JAX runtime each; the fits are mostly sequential scans)
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            pool = stack.enter_context(ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")))
-            results = pool.map(_validate_in_float64, units, [args] * len(units))
-        else:
-            results = map(_validate_in_float64, units, [args] * len(units))
+    # units in processes of their own (one JAX runtime and one XLA thread each, pinned to a CPU)
+    with executor(workers=args.jobs) as run_map:
+        results = run_map(functools.partial(_validate_in_float64, args=args), units)
         # each row is written as it comes (in order), so a run cut short keeps what it has done
         rows = _write_rows(args, units, results, kept)
     text = markdown(rows, args.decimate, args.sampler, args.effects or EFFECTS, _noise(args), args.laplace_shape, args.hop_to_the_hold)

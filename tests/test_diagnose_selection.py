@@ -357,3 +357,22 @@ def test_a_robust_signature_still_sees_a_large_misfit_on_few_samples():
     # the winsorised test alone: far weaker (log10 p −15 against −90 on this draw)
     _, stat, dof, _ = _test([view], [slope], robust=True)
     assert log10_chi2_sf(stat, dof) > ev.log10_p + 50, (log10_chi2_sf(stat, dof), ev.log10_p)
+    # each test's own p is recorded; the evidence's is the better one, Bonferroni over the two
+    by_test = ev.details["log10_p_by_test"]
+    assert set(by_test) == {"least-squares", "winsorised"}, by_test
+    assert by_test["winsorised"] == pytest.approx(log10_chi2_sf(stat, dof))
+    assert ev.log10_p == pytest.approx(by_test["least-squares"] + np.log10(2.0))
+
+
+def test_figure_titles_wrap_to_the_figure_width():
+    """A leftover's description runs to several hundred characters on measured loops: one title
+    line that long is cut off at both edges of the figure; it is wrapped, and cut with an
+    ellipsis past its last line."""
+    from torsionfit.diagnose._report import _title
+
+    text = "; ".join(f"periodic in time with period {p} s in runs initial-pos1 (8.9 % of the residual variance)"
+                     for p in range(10, 20))
+    title = _title(text, width=150, lines=2)
+    assert len(title.splitlines()) == 2 and all(len(line) <= 150 for line in title.splitlines())
+    assert title.endswith("…") and title.replace("\n", " ").startswith(text[:200])
+    assert _title("short", width=150) == "short"

@@ -1,6 +1,7 @@
 """``diagnose.json`` (DESIGN §5.2) and the figures of a diagnosis."""
 
 import json
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -188,6 +189,12 @@ def plot_signature(ax, effect: str, fitted, evidence):
     ax.axhline(0, color="0.6", lw=0.5)
 
 
+def _title(text: str, width: int, lines: int = 3) -> str:
+    """``text`` wrapped to lines of ``width`` characters (about the figure's width at its title's
+    font size: a longer line is cut off at both edges), at most ``lines`` of them."""
+    return textwrap.fill(text, width, max_lines=lines, placeholder=" …")
+
+
 def write_figures(d: Diagnosis, campaign, folder) -> list:
     plt = _plt()
     folder = Path(folder)
@@ -204,8 +211,8 @@ def write_figures(d: Diagnosis, campaign, folder) -> list:
         _residual_panels(after, s.after, f"after adding {s.effect}")
         ax = fig.add_subplot(grid[:, 2])
         plot_signature(ax, s.effect, s.before, s.evidence)
-        fig.suptitle(f"step {i}: {s.effect} (log10 p {s.evidence.log10_p:.1f}, ΔELPD {s.delta_elpd:.0f} ± "
-                     f"{s.delta_elpd_se:.0f}) — {source}", fontsize=8)
+        fig.suptitle(_title(f"step {i}: {s.effect} (log10 p {s.evidence.log10_p:.1f}, ΔELPD {s.delta_elpd:.0f} ± "
+                            f"{s.delta_elpd_se:.0f}) — {source}", width=190), fontsize=8)
         path = folder / f"step-{i}-{s.effect}.png"
         fig.savefig(path, dpi=110)
         plt.close(fig)
@@ -216,8 +223,8 @@ def write_figures(d: Diagnosis, campaign, folder) -> list:
     robust = any(r.robust for r in d.final.context.runs)
     jumps = ("; " + JUMPS + (", weighed down in the tests" if robust else ", counted as noise") + " (see the notes)"
              if any(n.startswith(JUMPS) for n in d.notes) else "")
-    fig.suptitle(("unexplained: " + d.unexplained_description if d.unexplained else _NOTHING_LEFT + jumps)[:160]
-                 + f"\n{source}", fontsize=7)
+    fig.suptitle(_title("unexplained: " + d.unexplained_description if d.unexplained else _NOTHING_LEFT + jumps,
+                        width=150, lines=2) + "\n" + _title(source, width=150), fontsize=7)
     path = folder / "final-residuals.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)

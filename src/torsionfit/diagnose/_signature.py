@@ -163,7 +163,8 @@ def regression_evidence(effect: str, runs, columns, description: str, details=No
     physics among the nuisance (robust to jumps); the better p-value counts, Bonferroni over the
     two. Each test has the other's blind spot: the winsorised one discounts a large misfit on a few
     samples (a torque offset shows at the gap crossings), the least-squares one a smooth effect
-    behind jumps. ``details["test"]`` says which one counted."""
+    behind jumps. ``details["test"]`` says which one counted, ``details["log10_p_by_test"]`` each
+    test's own log10 p (before the correction over the two)."""
     tested = [(r, c) for r, c in zip(runs, columns) if c is not None]
     if not tested:
         return Evidence(effect, 0.0, 0, 0.0, 0.0, description + " (not applicable: no run shows it)", details or {})
@@ -183,4 +184,5 @@ def regression_evidence(effect: str, runs, columns, description: str, details=No
     out = dict(details or {})
     out["coefficients"] = [float(c) for c in coef]
     out["test"] = name
+    out["log10_p_by_test"] = {n: float(v) for n, v in p.items()}
     return Evidence(effect, stat, k, min(0.0, p[name] + np.log10(len(found))), share, description, out)
