@@ -376,3 +376,24 @@ def test_figure_titles_wrap_to_the_figure_width():
     assert len(title.splitlines()) == 2 and all(len(line) <= 150 for line in title.splitlines())
     assert title.endswith("…") and title.replace("\n", " ").startswith(text[:200])
     assert _title("short", width=150) == "short"
+
+
+def test_candidates_are_refitted_in_the_order_of_their_least_squares_test():
+    """Where a residual moves in jumps, significance is the better of two tests, but the order in
+    which candidates are refitted is the least-squares test's (with the evidence's own search
+    corrections): the refit is judged by the Gaussian ELPD of every sample, whose gain the
+    least-squares Δχ² predicts. Evidence tested by least squares alone keeps its own p."""
+    from torsionfit.diagnose._loop import _gain_rank
+    from torsionfit.diagnose._signature import Evidence
+
+    def robust(ls, winsorised, search=0.0):
+        p = min(ls, winsorised) + np.log10(2.0) + search
+        return Evidence("x", 1.0, 1, p, 0.1, "", {"log10_p_by_test": {"least-squares": ls, "winsorised": winsorised}})
+
+    # the winsorised test's strongest is not the least-squares one's
+    strong_behind_jumps, strong_by_ls = robust(-2.0, -90.0), robust(-50.0, -30.0)
+    assert strong_behind_jumps.log10_p < strong_by_ls.log10_p
+    assert _gain_rank(strong_by_ls) < _gain_rank(strong_behind_jumps)
+    assert _gain_rank(robust(-50.0, -30.0, search=0.7)) == pytest.approx(-50.0 + 0.7)
+    alone = Evidence("x", 1.0, 1, -12.3, 0.1, "", {"log10_p_by_test": {"least-squares": -13.0}})
+    assert _gain_rank(alone) == -12.3 and _gain_rank(Evidence("x", 0.0, 0, 0.0, 0.0, "")) == 0.0
