@@ -17,9 +17,9 @@ from pathlib import Path
 
 import jax
 
+from torsionfit.batch import executor
 from torsionfit.diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
 from torsionfit.fit import NoiseOptions
-from torsionfit.batch import executor
 from torsionfit.io import decimate, load_campaign
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -111,8 +111,8 @@ def main(argv=None) -> int:
     parser.add_argument("--student-t", type=float, default=None, metavar="DOF",
                         help="Student-t noise with DOF degrees of freedom (the stick-slip jumps in its heavy tails)")
     parser.add_argument("--candidates-per-step", type=int, default=DiagnoseOptions().candidates_per_step,
-                        help="significant signatures refitted per step, the one that earns the most kept (1: the "
-                             "strongest alone, kept when it earns its keep)")
+                        help="significant signatures refitted per step, in the order of their least-squares test, the one "
+                             "that earns the most kept (1: the first alone, kept when it earns its keep)")
     parser.add_argument("--least-squares-signatures", action="store_true",
                         help="signatures by least squares alone, against the mean-square variogram's noise, which counts "
                              "the jumps (default: where a residual moves in jumps, each also tested winsorised)")
