@@ -126,7 +126,8 @@ def _residual_panels(axes, fitted, title):
         ax.axhline(0, color="0.6", lw=0.5)
         ax.set_ylabel(f"{r.name}\n(arcsec)", fontsize=7)
         ax.tick_params(labelsize=6)
-    axes[0].set_title(f"{title}: RMSE {fitted.rmse_arcsec:.3g}″", fontsize=8)
+    # a final model with many effects names them all: wrapped to the panel (8 in wide in the final figure)
+    axes[0].set_title(_title(f"{title}: RMSE {fitted.rmse_arcsec:.3g}″", width=100, lines=2), fontsize=8)
     axes[-1].set_xlabel("time (s)", fontsize=7)
 
 
