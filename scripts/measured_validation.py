@@ -37,6 +37,9 @@ the loading compliance are compared with the authors' numbers, read from the dat
     .venv/bin/python scripts/measured_validation.py -o docs/measured/validation [--units baseline-pccf-initial-pos1 ...]
 
 ``--units`` with ``--append`` re-fits those units and keeps the table's other rows.
+``--hold-out-ramp 2`` holds out the large ramp before the last instead (the model and the
+references fitted to the file before it): whether a file whose last ramp is predicted badly
+(or well) is one whose earlier ramp is too — whether the held-out error is the file's.
 """
 
 import argparse
@@ -184,9 +187,15 @@ def manifest(unit: str, select: list[int] | None, folder: Path, condition: list[
     return out
 
 
+def draw_values(problem, draws_u) -> dict:
+    """Every parameter of each draw (rows of ``draws_u``), SI, stacked: the physics, and the
+    linear ones (angle offset, drift, kinematic harmonics) at their optimum given the draw's."""
+    return {k: np.asarray(v) for k, v in jax.vmap(problem.full_values)(jnp.asarray(draws_u)).items()}
+
+
 def _predict(fit, whole, values: dict) -> np.ndarray:
     """Noise-free angle (rad) of the fitted model over the whole file, one row per draw;
-    ``values``: stacked SI physics of the draws plus the fitted angle offset."""
+    ``values``: every parameter of the draws (physics and linear, SI), stacked."""
     model = fit.problem.model
     inp = model_inputs(whole)[0]
 
@@ -194,7 +203,8 @@ def _predict(fit, whole, values: dict) -> np.ndarray:
     def one(v):
         return model.predict(v, [inp])[0]
 
-    return np.stack([np.asarray(one({k: x[i] for k, x in values.items()})) for i in range(len(values["angle_offset"]))])
+    n = len(next(iter(values.values())))
+    return np.stack([np.asarray(one({k: x[i] for k, x in values.items()})) for i in range(n)])
 
 
 def _hdi(x, prob=0.95):
@@ -242,6 +252,22 @@ def _play_torque_shifted(campaign, n_play_rows: int, shift_Nm: float, decimated_
     return dataclasses.replace(campaign, runs=(dataclasses.replace(run, torque_Nm=torque),))
 
 
+def held_ramp(ramps: list[int], from_end: int = 1) -> int:
+    """The test number of the large ramp (``≥ 100``) held out: the last (``from_end`` 1), the one
+    before it (2), …; the fit sees the ramps before it."""
+    large = sorted(r for r in ramps if r >= 100)
+    if not 1 <= from_end < len(large):
+        raise SystemExit(f"--hold-out-ramp {from_end}: expected 1 to {len(large) - 1}, as the file has {len(large)} large "
+                         f"ramps (test_nr ≥ 100) and at least one must be left to fit")
+    return large[-from_end]
+
+
+def held_text(from_end: int) -> str:
+    """The held-out ramp in words."""
+    return "the last large ramp" if from_end == 1 else (
+        "the large ramp before the last" if from_end == 2 else f"the {from_end}th large ramp from the end")
+
+
 def _data_path(unit: str) -> Path:
     """The measured file of ``unit`` (its example manifest's, else the one found in the data folder)."""
     return Path(re.search(r'file = "([^"]+)"', _manifest_text(unit)).group(1))
@@ -282,7 +308,8 @@ def fit_options(args, unit: str | None = None) -> FitOptions:
 def validate(unit: str, folder: Path, args) -> dict:
     path = _data_path(unit)
     ramps = test_numbers(path)
-    last = max(ramps)
+    last = held_ramp(ramps, getattr(args, "hold_out_ramp", 1))
+    ramps = [r for r in ramps if r <= last]  # ramps after the held-out one (--hold-out-ramp): predicted, unscored
     # --condition-first-ramp: the first large ramp (test_nr ≥ 100) drives the state, unfitted
     condition = [min(r for r in ramps if r >= 100)] if getattr(args, "condition_first_ramp", False) else None
     train = load_campaign(manifest(unit, [r for r in ramps if r != last], folder, condition))
@@ -307,17 +334,10 @@ def validate(unit: str, folder: Path, args) -> dict:
     draws = fit.draws_u[pick]
     # the posterior is widened by fit_campaign when the residuals keep structure (fit/_misfit.py)
     inflation = float(fit.diagnostics.get("misfit_inflation", 1.0))
-    phys = jax.vmap(lambda u: problem.physics_values(u[:problem.n_nonlinear]))(jnp.asarray(draws))
-    offsets = jax.vmap(lambda u: problem.full_values(u)["angle_offset"])(jnp.asarray(draws))
-    values = {k: np.asarray(v) for k, v in phys.items()}
-    values["angle_offset"] = np.asarray(offsets).reshape(len(pick), -1)
-    pred = _predict(fit, whole, values)  # (draws, N)
+    pred = _predict(fit, whole, draw_values(problem, draws))  # (draws, N)
     # the MAP's own prediction beside the posterior mean: where a parameter is not identified,
     # Laplace draws reach absurd values and the mean follows them, not the fit
-    u_map = jnp.asarray(fit.map_result.u)
-    at_map = {k: np.asarray(v)[None] for k, v in problem.physics_values(u_map[:problem.n_nonlinear]).items()}
-    at_map["angle_offset"] = np.asarray(problem.full_values(u_map)["angle_offset"]).reshape(1, -1)
-    pred_map = _predict(fit, whole, at_map)[0]
+    pred_map = _predict(fit, whole, draw_values(problem, np.asarray(fit.map_result.u)[None]))[0]
     sigma, rho = problem.noise_values(jnp.asarray(fit.map_result.u))
     # the fit's noise is for block means of `decimate` samples; the AR(1) marginal sd of the
     # misfit is what a held-out sample scatters by (the misfit, not the encoder, dominates)
@@ -330,7 +350,7 @@ def validate(unit: str, folder: Path, args) -> dict:
         shape = cycle_amplitude_shape(run.torque_Nm)
         marginal = np.sqrt((s * shape) ** 2 + float(problem.floors[0]) ** 2) / np.sqrt(1.0 - float(rho[0]) ** 2)
     nr = _block(_test_nr_of(path), args.decimate, len(y), np.min)
-    held = nr == last
+    held, fitted = nr == last, nr < last
     mean = pred.mean(axis=0)
     # the likelihood's noise: Gaussian, or Student-t with the fit's scale
     nu = getattr(args, "student_t", None)
@@ -338,13 +358,13 @@ def validate(unit: str, folder: Path, args) -> dict:
     noisy = pred[:, held] + np.broadcast_to(marginal, y.shape)[held] * unit_noise
     lo, hi = np.quantile(noisy, [0.05, 0.95], axis=0)
     inside = float(np.mean((y[held] >= lo) & (y[held] <= hi)))
-    large_train = (nr >= 100) & ~held
+    large_train = (nr >= 100) & fitted
     out = {
         "unit": unit,
         "effects": options.effects,
         "seconds_fit": seconds,
         **({} if shift is None else {"play_torque_shift_Nm": shift}),
-        "rmse_in_sample_arcsec": float(np.sqrt(np.mean((y[~held] - mean[~held]) ** 2)) / ARCSEC),
+        "rmse_in_sample_arcsec": float(np.sqrt(np.mean((y[fitted] - mean[fitted]) ** 2)) / ARCSEC),
         "rmse_in_sample_large_arcsec": float(np.sqrt(np.mean((y[large_train] - mean[large_train]) ** 2)) / ARCSEC),
         "rmse_held_out_arcsec": float(np.sqrt(np.mean((y[held] - mean[held]) ** 2)) / ARCSEC),
         "rmse_held_out_map_arcsec": float(np.sqrt(np.mean((y[held] - pred_map[held]) ** 2)) / ARCSEC),
@@ -378,9 +398,9 @@ def validate(unit: str, folder: Path, args) -> dict:
         out["compliance_model_deg_per_Nm"] = {"mean": float(np.mean(mean_c)), "hdi95": _hdi(mean_c),
                                              "pos": float(np.mean(comps[:, 0])), "neg": float(np.mean(comps[:, 1])),
                                              "draws": [float(v) for v in mean_c]}
-    out["reference"] = _reference(path, args.decimate, held, len(y))
+    out["reference"] = _reference(path, args.decimate, held, len(y), last)
     out["ratio_held_out"] = out["rmse_held_out_arcsec"] / out["reference"]["oos_rest"]
-    _figure(unit, t, tau, y, pred, lo, hi, held, args.output / "figures")
+    _figure(unit, t, tau, y, pred, lo, hi, held, fitted, args.output / "figures", held_text(getattr(args, "hold_out_ramp", 1)))
     if args.save_predictions is not None:
         # for re-scoring without a refit; derived from the measured file: keep outside the repository
         args.save_predictions.mkdir(parents=True, exist_ok=True)
@@ -435,58 +455,61 @@ def _block(x, size: int, n: int, how=np.mean) -> np.ndarray:
     return out
 
 
-def reference_prediction(loop: dict, signed: bool = True) -> np.ndarray:
-    """The Prandtl–Ishlinskii reference fitted to a file's raw samples (``read_loop``) without its
-    last large ramp: its prediction of every raw sample (rad)."""
+def reference_prediction(loop: dict, signed: bool = True, held_nr: int | None = None) -> np.ndarray:
+    """The Prandtl–Ishlinskii reference fitted to a file's raw samples (``read_loop``) before the
+    ramp ``held_nr`` (default: the last large ramp): its prediction of every raw sample (rad)."""
     from pi_reference import PIReference
 
     offset = loop["angle_rad"].mean()  # the offset column absorbs it; keeps NNLS well scaled
-    last = loop["test_nr"] == loop["test_nr"].max()
-    return PIReference(signed_play=signed).fit(loop["torque_Nm"], loop["angle_rad"] - offset, ~last).predict() + offset
+    fitted = loop["test_nr"] < (loop["test_nr"].max() if held_nr is None else held_nr)
+    return PIReference(signed_play=signed).fit(loop["torque_Nm"], loop["angle_rad"] - offset, fitted).predict() + offset
 
 
-def _reference(path: Path, size: int, held, n: int) -> dict:
-    """The Prandtl–Ishlinskii reference fitted to the raw samples except the last large ramp,
-    scored on block means of ``size`` samples of the held-out ramp (as the model)."""
+def _reference(path: Path, size: int, held, n: int, held_nr: int | None = None) -> dict:
+    """The Prandtl–Ishlinskii reference fitted to the raw samples before the held-out ramp
+    ``held_nr`` (default: the last large ramp), scored on block means of ``size`` samples of
+    that ramp (as the model)."""
     from pi_reference import PIReference, read_loop
     from repeat_reference import held_out_prediction
 
     t0 = time.perf_counter()
     d = read_loop(path)
     y = d["angle_rad"] - d["angle_rad"].mean()
-    last = d["test_nr"] == d["test_nr"].max()
+    held_nr = int(d["test_nr"].max()) if held_nr is None else held_nr
+    fitted = d["test_nr"] < held_nr
     out = {}
     # the reference as designed (play weights of either sign: a loop drawn counter-clockwise where
     # the torque estimate runs ahead of the gap crossing, which no physical hysteresis does), and
     # the physically admissible PI (weights ≥ 0: a break-away density of any shape, clockwise)
     for key, signed in (("oos_rest", True), ("physical_oos_rest", False)):
-        e = _block(reference_prediction(d, signed) - d["angle_rad"], size, n)[held]
+        e = _block(reference_prediction(d, signed, held_nr) - d["angle_rad"], size, n)[held]
         out[key] = float(np.sqrt(np.mean(e**2)) / ARCSEC)
     # the reference as designed with a damped gap crossing, its lag chosen on the fitted rows
-    fit, lag = PIReference().fit_lagged(d["time_s"], d["torque_Nm"], y, ~last)
+    fit, lag = PIReference().fit_lagged(d["time_s"], d["torque_Nm"], y, fitted)
     out["lagged_oos_rest"] = float(np.sqrt(np.mean(_block(fit.predict() - y, size, n)[held] ** 2)) / ARCSEC)
     out["lag_s"] = lag
     # no model: the earlier large ramps' own twist at the same torque on the same branch — the
     # ramp-to-ramp walk (and the noise of a few ramps' average) is all its error
-    e = _block(held_out_prediction(d) - d["angle_rad"], size, n)[held]
+    e = _block(held_out_prediction(d, held_nr) - d["angle_rad"], size, n)[held]
     covered = np.isfinite(e)
     out["repeat_oos"] = float(np.sqrt(np.mean(e[covered] ** 2)) / ARCSEC)
     out["repeat_covered"] = float(np.mean(covered))
     return out | {"seconds": time.perf_counter() - t0}
 
 
-def refresh_references(rows: list[dict], size: int) -> None:
+def refresh_references(rows: list[dict], size: int, hold_out_ramp: int = 1) -> None:
     """Recompute every row's reference columns in place (cheap: no model fit)."""
     for row in rows:
         path = _data_path(row["unit"])
         nr_raw = _test_nr_of(path)
         n = len(nr_raw) // size
-        held = _block(nr_raw, size, n, np.min) == nr_raw.max()
-        row["reference"] = _reference(path, size, held, n)
+        last = held_ramp(test_numbers(path), hold_out_ramp)
+        held = _block(nr_raw, size, n, np.min) == last
+        row["reference"] = _reference(path, size, held, n, last)
         row["ratio_held_out"] = row["rmse_held_out_arcsec"] / row["reference"]["oos_rest"]
 
 
-def _figure(unit, t, tau, y, pred, lo, hi, held, folder: Path):
+def _figure(unit, t, tau, y, pred, lo, hi, held, fitted, folder: Path, held_name: str = "the last large ramp"):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -495,9 +518,10 @@ def _figure(unit, t, tau, y, pred, lo, hi, held, folder: Path):
     folder.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(1, 2, figsize=(13, 5))
     mean = pred.mean(axis=0)
-    ax[0].plot(tau[~held], y[~held] / DEG, ".", ms=1, color="0.6", label="measured, fitted part")
+    ax[0].plot(tau[fitted], y[fitted] / DEG, ".", ms=1, color="0.6", label="measured, fitted part")
     ax[0].plot(tau[held], y[held] / DEG, ".", ms=1, color="k", label="measured, held-out ramp")
-    ax[0].plot(tau, mean / DEG, "-", lw=0.6, color="C1", label="model (posterior mean)")
+    shown = fitted | held
+    ax[0].plot(tau[shown], mean[shown] / DEG, "-", lw=0.6, color="C1", label="model (posterior mean)")
     ax[0].set_xlabel("torque (N·m, from motor current)")
     ax[0].set_ylabel("twist (deg)")
     ax[0].legend(fontsize=7, markerscale=6)
@@ -507,7 +531,7 @@ def _figure(unit, t, tau, y, pred, lo, hi, held, folder: Path):
     ax[1].plot(th, y[held] / DEG, "-", lw=0.6, color="k", label="measured")
     ax[1].plot(th, mean[held] / DEG, "-", lw=0.6, color="C1", label="model")
     ax[1].set_xlabel("time (s)")
-    ax[1].set_title("held-out last ramp, predicted from the rest of the file", fontsize=9)
+    ax[1].set_title(f"held out: {held_name}, predicted from the file before it", fontsize=9)
     ax[1].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(folder / f"{unit}.png", dpi=80)
@@ -641,13 +665,16 @@ def model_text(rows: list[dict], effects: dict) -> str:
 
 
 def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise: str, laplace_shape: str = "gaussian",
-             hop: bool = False) -> str:
+             hop: bool = False, hold_out_ramp: int = 1) -> str:
     rows = sorted(rows, key=lambda r: r["unit"])  # the table in unit order, whatever order they were fitted in
+    held = held_text(hold_out_ramp)
+    split = ("without its last large ramp" if hold_out_ramp == 1 else
+             f"up to {held} (the ramps after it are neither fitted nor scored)")
     lines = [
         f"Measured loops ({SOURCE}). Model: {model_text(rows, effects)}, "
         + ("the MAP hopped to the hold mode where that is higher (--hop-to-the-hold), " if hop else "") +
-        f"{noise_text(noise)}, posterior by {posterior_text(sampler, laplace_shape)}, fitted to each file without its last large ramp (block means of {decimate} samples). "
-        "RMSE in arcsec on those block means, the model's and the reference's alike; held-out = the last large ramp predicted from the rest of the file "
+        f"{noise_text(noise)}, posterior by {posterior_text(sampler, laplace_shape)}, fitted to each file {split} (block means of {decimate} samples). "
+        f"RMSE in arcsec on those block means, the model's and the reference's alike; held-out = {held} predicted from the file before it "
         "(posterior mean of the draws' predictions; (MAP): the prediction of the MAP alone); "
         "reference = Prandtl–Ishlinskii + tanh gap by NNLS (benchmarks/pi_reference.py) on the same split, as designed "
         "(play weights of either sign) and physical (weights ≥ 0: any break-away density, a clockwise loop); "
@@ -810,6 +837,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--laplace-shape", choices=("gaussian", "split"), default="split",
                         help="Laplace draws from a split normal measured along the Gaussian's axes (default) or the Gaussian")
     parser.add_argument("--decimate", type=int, default=16)
+    parser.add_argument("--hold-out-ramp", type=int, default=1, metavar="K",
+                        help="hold out the K-th large ramp from the end (1: the last; 2: the one before it, the fit and "
+                             "the references seeing the ramps before it): is the held-out error a property of the file?")
     parser.add_argument("--starts", type=int, default=FitOptions().n_starts, help="MAP starts (default: the fit's)")
     parser.add_argument("--draws", type=int, default=200, help="posterior draws for the predictive interval")
     parser.add_argument("--metric-draws", type=int, default=40, help="draws for the model's play and loading compliance")
@@ -880,7 +910,7 @@ def _main(args) -> int:
     if args.table_only or args.refresh_references or args.refresh_data_metrics:
         doc = json.loads((args.output / "validation.json").read_text())
         if args.refresh_references:
-            refresh_references(doc["units"], doc.get("decimate", args.decimate))
+            refresh_references(doc["units"], doc.get("decimate", args.decimate), doc.get("hold_out_ramp", 1))
         if args.refresh_data_metrics:
             if not DATA.is_dir():
                 print(f"{DATA} is absent: the data-only metrics are read from the measured files")
@@ -890,7 +920,8 @@ def _main(args) -> int:
             (args.output / "validation.json").write_text(json.dumps(doc, indent=1, default=float))
         # written before the noise / the Laplace shape were recorded: AR(1) / the Gaussian
         text = markdown(doc["units"], doc.get("decimate", args.decimate), doc.get("sampler", args.sampler), doc.get("effects", args.effects or EFFECTS),
-                        doc.get("noise", "ar1"), doc.get("laplace_shape", "gaussian"), doc.get("hop_to_the_hold", False))
+                        doc.get("noise", "ar1"), doc.get("laplace_shape", "gaussian"), doc.get("hop_to_the_hold", False),
+                        doc.get("hold_out_ramp", 1))
         (args.output / "validation.md").write_text(text + "\n")
         print(text)
         return 0
@@ -912,7 +943,8 @@ def _main(args) -> int:
         results = run_map(functools.partial(_validate_in_float64, args=args), units)
         # each row is written as it comes (in order), so a run cut short keeps what it has done
         rows = _write_rows(args, units, results, kept)
-    text = markdown(rows, args.decimate, args.sampler, args.effects or EFFECTS, _noise(args), args.laplace_shape, args.hop_to_the_hold)
+    text = markdown(rows, args.decimate, args.sampler, args.effects or EFFECTS, _noise(args), args.laplace_shape, args.hop_to_the_hold,
+                    args.hold_out_ramp)
     (args.output / "validation.md").write_text(text + "\n")
     print(text)
     return 0
@@ -926,8 +958,9 @@ def _kept_rows(args, units) -> list[dict]:
         return []
     doc = json.loads(path.read_text())
     settings = {"decimate": args.decimate, "sampler": args.sampler, "noise": _noise(args), "laplace_shape": args.laplace_shape,
-                "hop_to_the_hold": args.hop_to_the_hold, "align_play_crossings": args.align_play_crossings}
-    recorded = {"hop_to_the_hold": False, "align_play_crossings": False, **doc}  # written only when on
+                "hop_to_the_hold": args.hop_to_the_hold, "align_play_crossings": args.align_play_crossings,
+                "hold_out_ramp": args.hold_out_ramp}
+    recorded = {"hop_to_the_hold": False, "align_play_crossings": False, "hold_out_ramp": 1, **doc}  # written only when on
     for key, value in settings.items():
         if recorded.get(key) != value:
             raise SystemExit(f"--append: {path} was written with {key} = {recorded.get(key)!r}, this run has {value!r}")
@@ -946,6 +979,7 @@ def _write_rows(args, units, results, kept: list[dict]) -> list[dict]:
                                                                        **({} if args.effects else {"design_effects": DESIGN_EFFECTS}),
                                                                        "noise": _noise(args),
                                                                        "laplace_shape": args.laplace_shape,
+                                                                       **({"hold_out_ramp": args.hold_out_ramp} if args.hold_out_ramp != 1 else {}),
                                                                        **({"hop_to_the_hold": True} if args.hop_to_the_hold else {}),
                                                                        **({"align_play_crossings": True} if args.align_play_crossings else {}),
                                                                        "units": rows},

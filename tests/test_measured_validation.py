@@ -96,6 +96,18 @@ def test_a_configuration_without_the_authors_numbers_is_named_not_dropped():
     assert "| split-pla-preload3 |" not in text and "| split-pccf-preload2 |" in text
 
 
+def test_the_held_out_ramp_is_counted_from_the_end_and_leaves_a_large_ramp_to_fit():
+    ramps = [1, 2, 3, 100, 101, 102]
+    assert mv.held_ramp(ramps) == 102 and mv.held_ramp(ramps, 2) == 101
+    for bad in (0, 3):
+        with pytest.raises(SystemExit, match=f"--hold-out-ramp {bad}: expected 1 to 2, as the file has 3 large ramps"):
+            mv.held_ramp(ramps, bad)
+    assert mv.parse_args([]).hold_out_ramp == 1
+    rows = json.loads((ROOT / "docs" / "measured" / "validation" / "validation.json").read_text())["units"]
+    assert "held-out = the large ramp before the last predicted from the file before it" in mv.markdown(
+        rows, 16, "laplace", mv.EFFECTS, "iid", hold_out_ramp=2)
+
+
 def test_train_manifest_holds_out_the_last_large_ramp(tmp_path):
     from torsionfit.io import load_campaign
 
@@ -342,6 +354,31 @@ def test_a_friction_level_lagging_the_load_predicts_a_held_out_ramp_better(tmp_p
         rmse[name] = float(np.sqrt(np.mean((y[held] - pred[held]) ** 2)) / mv.ARCSEC)
     print(rmse)
     assert rmse["lagged"] < 0.97 * rmse["instantaneous"], rmse
+
+
+def test_the_held_out_prediction_carries_every_linear_parameter(tmp_path):
+    """A model with a linear parameter besides the angle offset (here the drift) is predicted
+    over the whole file with it (REAL data): the prediction once failed on the missing key."""
+    from types import SimpleNamespace
+
+    import torsionfit
+    from torsionfit.io import decimate, load_campaign
+    from torsionfit.report import prepare_fit
+
+    unit = "split-pccf-reassembled-pos5"
+    path = mv._data_path(unit)
+    ramps = mv.test_numbers(path)
+    train = load_campaign(mv.manifest(unit, [r for r in ramps if r != max(ramps)], tmp_path))
+    whole = decimate(load_campaign(mv.manifest(unit, None, tmp_path)), 64)
+    args = mv.parse_args(["--decimate", "64", "--effects", '{"thermal_drift": true}'])
+    with torsionfit.float64():
+        _, _, problem = prepare_fit(train, mv.fit_options(args))
+        u = np.zeros((2, problem.dim))
+        u[:, :problem.n_nonlinear] = np.asarray(problem.prior_mean)  # two draws at the prior's centre
+        values = mv.draw_values(problem, u)
+        assert {"angle_offset", "drift"} <= set(values), sorted(values)
+        pred = mv._predict(SimpleNamespace(problem=problem), whole, values)
+    assert pred.shape == (2, len(whole.runs[0])) and np.all(np.isfinite(pred))
 
 
 def test_the_preloaded_play_ramps_are_far_narrower_in_torque_than_the_largest_cycles(tmp_path):

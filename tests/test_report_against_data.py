@@ -136,3 +136,33 @@ def test_on_a_measured_loop_the_reader_and_the_readings_are_the_data_only_metric
     assert readings["play"]["value"] == pytest.approx(play / ARCMIN, rel=1e-9)
     for name, r in readings.items():
         assert r["run"] == "preload2-pos1" and 0 < r["se"] < 0.05 * r["value"], (name, r)
+
+
+def test_a_metric_read_on_no_draw_is_left_out_with_its_reason_and_the_others_are_reported():
+    """SYNTHETIC: only ±4 N·m cycles whose friction (2.5 N·m) holds the twist past half their
+    peak: the loading slope has no range beyond the play, for the data and for the model alike.
+    The fit reports every other metric and names the loading metrics with the data's reason
+    (it once dropped every draw and stopped on an empty interval)."""
+    from torsionfit.report import FitOptions, fit_campaign, fit_json, summary_table
+
+    knots = [0.0, 4.0] + [-4.0, 4.0] * 4 + [0.0]
+    fs, friction = 50.0, 2.5
+    tau = np.concatenate([np.linspace(a, b, int(abs(b - a) * fs / 4.0), endpoint=False)
+                          for a, b in zip(knots[:-1], knots[1:])] + [np.zeros(1)])
+    mesh, state = np.empty_like(tau), 0.0
+    for i, t in enumerate(tau):
+        state = min(max(state, t - friction), t + friction)
+        mesh[i] = state
+    theta = 0.09 * DEG * mesh + 0.5 * GAP * np.tanh(mesh / EPS_GAP)
+    theta += np.random.default_rng(0).normal(0.0, 2e-6, theta.size)
+    campaign = Campaign(Reducer("u", rated_torque_Nm=4.0), Instrument(), (
+        HysteresisRun(name="small", time_s=np.arange(tau.size) / fs, torque_Nm=tau, angle_rad=theta),))
+    with pytest.warns(UserWarning, match="metrics not computed: stiffness_loading"):
+        fit = fit_campaign(campaign, FitOptions(sampler="laplace", progress=False, laplace_draws=200, metric_draws=40), seed=0)
+    doc = fit_json(fit)
+    left_out = doc["diagnostics"]["metrics_not_computed"]
+    assert set(left_out) == {"stiffness_loading", "compliance_loading_pos", "compliance_loading_neg"}, left_out
+    assert all("on any of 40 draws" in n and "the data-only reading fails as well" in n for n in left_out.values())
+    assert "play" in doc["metrics"] and not set(left_out) & set(doc["metrics"])
+    assert all(np.isfinite(e["mean"]) for e in doc["metrics"].values())
+    assert "not computed: stiffness_loading:" in summary_table(doc)

@@ -84,6 +84,25 @@ def against_data(metrics: dict, readings: dict) -> list[str]:
     return off
 
 
+def unreadable_note(name: str, campaign, n_draws: int, read_share: float = 0.0) -> str:
+    """Why the metric ``name`` is left out of a fit: its definition reads a value off the model
+    on ``read_share`` (< ½) of the ``n_draws`` draws (fit.json's
+    ``diagnostics.metrics_not_computed``); for a class metric, the data-only reading's own
+    reason where it fails too."""
+    reason = (f"its definition reads no value off the model on any of {n_draws} draws" if read_share == 0 else
+              f"its definition reads a value off the model on only {100 * read_share:.0f} % of {n_draws} draws")
+    if name not in UNITS:
+        return reason
+    classes = record_classes(campaign)
+    if classes is None:
+        return reason + "; the data has no hysteresis run whose cycles can be grouped"
+    try:
+        class_readings(classes.small, classes.large, name=classes.large_run.name)
+    except InputError as err:
+        return f"{reason}; the data-only reading fails as well: {err}"
+    return reason + " (the data-only reading has one: torsionfit metrics)"
+
+
 def off_data_note(metrics: dict, off: list[str]) -> str:
     """One line for the summary and fit.json: which metrics the model does not draw."""
     parts = []

@@ -29,7 +29,7 @@ from ..fit._misfit import MISFIT_RHO, misfit_correlated_runs, widen_for_misfit
 from ..io import Campaign, decimate
 from ..model import SteppedBacklash, model_with_effects
 from ..units import ANGLE_UNITS
-from ._against_data import against_data, data_readings, off_data_note
+from ._against_data import against_data, data_readings, off_data_note, unreadable_note
 from ._derived import derived_metrics_for
 from ._follows import left_by_posterior_reason, not_followed_reason, runs_left_by_posterior, runs_not_followed
 
@@ -559,6 +559,18 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     linear = derived.reads_linear()
     values = map_chunks(lambda u: _values_over_draws(problem, u, linear), draws_u[pick])
     all_metric_draws = np.asarray(derived.over_draws(values))
+    # a metric its definition reads off no draw, or off fewer than half of them (the loading
+    # slope of a record whose largest cycles have no branch beyond the play, …), is left out
+    # with a note rather than every metric with it, or the draws it happens to read
+    read_share = np.mean(np.isfinite(all_metric_draws), axis=0) if len(all_metric_draws) else np.ones(len(derived.specs))
+    readable = read_share >= 0.5
+    specs = tuple(s for s, ok in zip(derived.specs, readable) if ok)
+    if not readable.all():
+        unread = {s.name: unreadable_note(s.name, campaign, len(all_metric_draws), share)
+                  for s, ok, share in zip(derived.specs, readable, read_share) if not ok}
+        diagnostics["metrics_not_computed"] = unread
+        warnings.warn("metrics not computed: " + "; ".join(f"{k}: {v}" for k, v in unread.items()))
+        all_metric_draws = all_metric_draws[:, readable]
     bad = ~np.all(np.isfinite(all_metric_draws), axis=1)
     if bad.any():
         warnings.warn(f"{bad.sum()} of {len(bad)} draws gave non-finite metrics and were dropped")
@@ -569,10 +581,10 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
         # the first of the metrics' (independent) draws, as one chain, when first asked for
         n_tree = min(len(pick), tree_limit)
         tree = functools.partial(_laplace_tree, problem, map_result, draws_u[pick[:n_tree]], names,
-                                 derived.specs, all_metric_draws[None, :n_tree], campaign, seed, approximation)
+                                 specs, all_metric_draws[None, :n_tree], campaign, seed, approximation)
     else:
         tree_metrics = all_metric_draws.reshape(n_chain, len(metric_grid), -1)[:, np.searchsorted(metric_grid, tree_grid)]
-        tree = to_datatree(problem, sample_result, names, draws=tree_grid, metric_specs=derived.specs,
+        tree = to_datatree(problem, sample_result, names, draws=tree_grid, metric_specs=specs,
                            metric_draws=tree_metrics, campaign=campaign, seed=seed)
         diagnostics.update(_sampler_diagnostics(sample_result, used, convergence_summary(tree), chain))
     residuals = _residuals(problem, jnp.asarray(map_result.u))
@@ -590,7 +602,7 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
         if left:
             _mark_not_converged(diagnostics, "left_by_posterior", left, left_by_posterior_reason(left))
     return CampaignFit(campaign=campaign, options=options, problem=problem, map_result=map_result,
-                       draws_u=np.asarray(draws_u), metric_specs=derived.specs, metric_draws=metric_draws,
+                       draws_u=np.asarray(draws_u), metric_specs=specs, metric_draws=metric_draws,
                        diagnostics=diagnostics, rmse_arcsec=rmse, tree_source=tree, sample_result=sample_result,
                        metric_values=metric_values, seed=seed)
 
@@ -720,6 +732,8 @@ def summary_table(doc: dict) -> str:
         lines.append(f"laplace: {d['laplace_note']}")
     if d.get("metrics_off_data_note"):
         lines.append(f"off the data: {d['metrics_off_data_note']}")
+    for name, note in (d.get("metrics_not_computed") or {}).items():
+        lines.append(f"not computed: {name}: {note}")
     lines.append("RMSE: " + ", ".join(f"{k} {v['value']:.3g}″" for k, v in doc["rmse"].items()))
     return "\n".join(lines)
 
