@@ -166,3 +166,17 @@ def test_a_metric_read_on_no_draw_is_left_out_with_its_reason_and_the_others_are
     assert "play" in doc["metrics"] and not set(left_out) & set(doc["metrics"])
     assert all(np.isfinite(e["mean"]) for e in doc["metrics"].values())
     assert "not computed: stiffness_loading:" in summary_table(doc)
+    # acceptance reads its requirements' draws by column: the right ones with metrics left out,
+    # and a requirement on a metric not computed stops with one line
+    from torsionfit._errors import InputError
+    from torsionfit.accept import accept_campaign, parse_spec
+
+    spec = parse_spec({"requirement": [{"metric": "play", "max": 1e4, "unit": "arcmin", "name": "P"},
+                                       {"metric": "backlash", "max": 1e4, "unit": "arcmin", "name": "B"}]}, "test spec")
+    unit = accept_campaign(campaign, spec, fit.options, envelope=False, fit=fit)
+    names = [m.name for m in fit.metric_specs]
+    for b, q in zip(unit.bound, unit.quantities.T):
+        assert np.array_equal(q, fit.metric_draws[:, names.index(b.requirement.metric)])
+    loading = parse_spec({"requirement": [{"metric": "stiffness_loading", "min": 0.01, "unit": "Nm/arcmin"}]}, "test spec")
+    with pytest.raises(InputError, match=r"stiffness_loading is not computed for this unit \(its definition reads no value"):
+        accept_campaign(campaign, loading, fit.options, envelope=False, fit=fit)

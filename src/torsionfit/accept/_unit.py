@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._errors import InputError
 from .._provenance import provenance
 from .._x64 import in_float64
 from ..fit import check_fittable
@@ -48,6 +49,20 @@ def bind_to_campaign(spec: Spec, campaign, options: FitOptions = FitOptions()):
     return bind_requirements(spec, derived.specs, bool(campaign.te_runs)), derived
 
 
+def _bound_to_fit(spec: Spec, bound, fit, campaign):
+    """``bound`` with its columns in ``fit.metric_draws``: a metric the fit could not read
+    (``diagnostics.metrics_not_computed``) is left out of them, and a requirement on it stops
+    with one line naming the unit, the requirement and why."""
+    not_computed = fit.diagnostics.get("metrics_not_computed") or {}
+    for b in bound:
+        if b.requirement.metric in not_computed:
+            raise InputError(f"{campaign.path or campaign.reducer.name}: {b.requirement.where}: "
+                             f"{b.requirement.metric} is not computed for this unit ({not_computed[b.requirement.metric]})")
+    if not not_computed:
+        return bound
+    return bind_requirements(spec, fit.metric_specs, bool(campaign.te_runs))
+
+
 @in_float64
 def accept_campaign(campaign, spec: Spec, options: FitOptions = FitOptions(), seed: int = 0,
                     envelope: bool = True, fit=None) -> UnitAcceptance:
@@ -63,6 +78,7 @@ def accept_campaign(campaign, spec: Spec, options: FitOptions = FitOptions(), se
     log.info("%s: %d runs, %d requirements%s", campaign.path or campaign.reducer.name, len(campaign.runs),
              len(bound), "" if fit is None else "; fitted already")
     fit = fit_campaign(campaign, options, seed=seed) if fit is None else fit
+    bound = _bound_to_fit(spec, bound, fit, campaign)
     quantities = requirement_quantities(bound, derived, fit.metric_values, fit.metric_draws)
     d = fit.diagnostics
     # a requirement on a metric the data read directly, whose reading the model's interval
