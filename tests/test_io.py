@@ -227,6 +227,36 @@ def test_peak_torque_allows_a_partial_load_run(write_files):
     assert load_campaign(path).runs[0].peak_torque_Nm == 30.0
 
 
+def test_peak_torque_from_the_data_declares_a_partial_load_run_without_a_guess(write_files):
+    """``peak_torque_Nm = "data"``: play ramps far below the rated torque load, their peak the
+    one both directions reach, with a note that the torque unit went unchecked."""
+    csv = hyst_csv(peak=30.0)
+    path = write_files({"campaign.toml": manifest(hyst_run(peak_torque_Nm="data")), "h.csv": csv})
+    run = load_campaign(path).runs[0]
+    torque = np.loadtxt(csv.splitlines(), delimiter=",", comments="#", skiprows=2)[:, 1]
+    assert run.peak_torque_Nm == pytest.approx(min(torque.max(), -torque.min()))
+    assert any("peak_torque_Nm read off the data" in n and "not checked" in n for n in run.notes)
+    # without it the rated torque is the nominal load the run must reach, and the line says how to declare it
+    message = load_error(write_files({"campaign.toml": manifest(hyst_run()), "h.csv": csv}))
+    assert 'or "data" for the peak its cycles reach' in message
+
+
+@pytest.mark.parametrize("value, expected", [
+    ('"dta"', 'peak_torque_Nm must be a number > 0 (N·m) or "data"'),
+    ("-3.0", "peak_torque_Nm must be > 0"),
+])
+def test_peak_torque_is_a_positive_number_or_data(write_files, value, expected):
+    text = manifest(hyst_run()).rstrip() + f"\npeak_torque_Nm = {value}\n"
+    assert expected in load_error(write_files({"campaign.toml": text, "h.csv": hyst_csv(peak=30.0)}))
+
+
+def test_peak_torque_from_the_data_needs_torque_of_both_signs(write_files):
+    one_signed = csv_text(("time_s", "torque_Nm", "angle_arcmin"),
+                          [np.linspace(0, 8, 40), np.linspace(1, 30, 40), np.linspace(1, 30, 40) / 20])
+    message = load_error(write_files({"campaign.toml": manifest(hyst_run(peak_torque_Nm="data")), "h.csv": one_signed}))
+    assert "does not change sign" in message and "'torque_Nm'" in message
+
+
 # ----------------------------------------------------------------------------- bad input
 
 

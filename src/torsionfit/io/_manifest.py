@@ -22,7 +22,7 @@ from .._errors import InputError
 from ._campaign import Campaign, HysteresisRun, Instrument, Reducer, TransmissionErrorRun
 from ._columns import CANONICAL
 from ._convention import check_te_convention
-from ._runs import RunSpec, read_run
+from ._runs import PEAK_FROM_DATA, RunSpec, read_run
 
 MANIFEST_NAME = "campaign.toml"
 KINDS = ("hysteresis", "transmission_error")
@@ -155,6 +155,16 @@ def _number(table: dict, key: str, where: str, *, required=False, minimum=None, 
     return float(value)
 
 
+def _peak(table: dict, where: str) -> float | str | None:
+    """``peak_torque_Nm``: a number > 0 (N·m), or ``"data"`` (:data:`PEAK_FROM_DATA`)."""
+    if table.get("peak_torque_Nm") == PEAK_FROM_DATA:
+        return PEAK_FROM_DATA
+    if isinstance(table.get("peak_torque_Nm"), str):
+        raise InputError(f"{where}: peak_torque_Nm must be a number > 0 (N·m) or \"{PEAK_FROM_DATA}\" (the run's own "
+                         f"peak, read off its torque), got {table['peak_torque_Nm']!r}")
+    return _number(table, "peak_torque_Nm", where, positive=True)
+
+
 def _text(table: dict, key: str, where: str, *, required=False, default=None) -> str | None:
     if key not in table:
         if required:
@@ -229,7 +239,7 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str, reducer: Reduce
             **common,
             condition=_select(entry, where, "condition"),
             loading_rate_Nm_per_s=_number(entry, "loading_rate_Nm_per_s", where, positive=True),
-            peak_torque_Nm=_number(entry, "peak_torque_Nm", where, positive=True),
+            peak_torque_Nm=_peak(entry, where),
         )
     direction = _text(entry, "direction", where, required=True)
     if direction not in DIRECTIONS:

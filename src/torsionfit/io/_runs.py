@@ -16,6 +16,8 @@ from ._read import Table, drop_trailing_pad, read_table, rows_passing, select_ro
 MIN_SAMPLES = 10
 #: a hysteresis run's largest |torque| must reach this fraction of its nominal peak load
 PEAK_FRACTION = 0.9
+#: ``peak_torque_Nm = "data"``: a partial-load run whose peak is read off its torque at load
+PEAK_FROM_DATA = "data"
 
 
 @dataclass(frozen=True)
@@ -33,7 +35,7 @@ class RunSpec:
     # hysteresis
     condition: dict = field(default_factory=dict)  # [runs.condition]: rules of the conditioning rows
     loading_rate_Nm_per_s: float | None = None
-    peak_torque_Nm: float | None = None
+    peak_torque_Nm: float | str | None = None  # N·m, or "data": the run's own peak
     # transmission error
     speed_rpm: float | None = None
     torque_Nm: float | None = None
@@ -93,15 +95,27 @@ def _check_time(time: np.ndarray, table: Table, column: str, where: str) -> None
 
 def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> HysteresisRun:
     torque = si("torque")
-    peak = spec.peak_torque_Nm if spec.peak_torque_Nm is not None else reducer.rated_torque_Nm
+    peak_torque_Nm = spec.peak_torque_Nm
+    if peak_torque_Nm == PEAK_FROM_DATA:
+        # declared a partial-load run (play ramps, a selection of small cycles): its peak is the
+        # one both directions reach, and there is no nominal load to check the torque unit by
+        peak_torque_Nm = float(min(np.max(torque), -np.min(torque)))
+        if peak_torque_Nm <= 0.0:
+            raise InputError(f"{where}: peak_torque_Nm = \"{PEAK_FROM_DATA}\" reads the peak both directions reach, and "
+                             f"column {found['torque'].name!r} does not change sign ({np.min(torque):.4g} to "
+                             f"{np.max(torque):.4g} N·m); expected loops through zero torque")
+        notes.append(f"peak_torque_Nm read off the data: {peak_torque_Nm:.4g} N·m (the smaller of the largest positive "
+                     f"and negative torque); the torque unit is not checked against a nominal load")
+    peak = peak_torque_Nm if peak_torque_Nm is not None else reducer.rated_torque_Nm
     reached = float(np.max(np.abs(torque)))
     # Without a nominal load (no peak_torque_Nm, no rated_torque_Nm) there is nothing to reach.
-    if peak is not None and reached < PEAK_FRACTION * peak:
+    if spec.peak_torque_Nm != PEAK_FROM_DATA and peak is not None and reached < PEAK_FRACTION * peak:
         origin = "peak_torque_Nm" if spec.peak_torque_Nm is not None else "rated_torque_Nm"
         raise InputError(
             f"{where}: column {found['torque'].name!r} reaches only |torque| = {reached:.4g} N·m, "
             f"below {PEAK_FRACTION} × the nominal peak load {peak:.4g} N·m ({origin}); "
-            f"check the torque column and its unit, or set peak_torque_Nm for this run"
+            f"check the torque column and its unit, or set peak_torque_Nm for this run (its nominal peak in N·m, "
+            f"or \"{PEAK_FROM_DATA}\" for the peak its cycles reach)"
         )
     angle = si("angle")
     # after the errors: a warning is for data that read cleanly
@@ -124,7 +138,7 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
         loading_rate_Nm_per_s=spec.loading_rate_Nm_per_s,
         temperature_C=si("temperature"),
         source=str(spec.path),
-        peak_torque_Nm=spec.peak_torque_Nm,
+        peak_torque_Nm=peak_torque_Nm,
         nominal_temperature_C=spec.temperature_C,
         notes=tuple(notes),
         conditioning=conditioning,
