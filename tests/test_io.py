@@ -1,5 +1,6 @@
 """Campaign files (DESIGN §5.1): manifest + CSV runs, one-line errors, round trip, examples."""
 
+import json
 import math
 from pathlib import Path
 
@@ -227,15 +228,25 @@ def test_peak_torque_allows_a_partial_load_run(write_files):
     assert load_campaign(path).runs[0].peak_torque_Nm == 30.0
 
 
-def test_peak_torque_from_the_data_declares_a_partial_load_run_without_a_guess(write_files):
-    """``peak_torque_Nm = "data"``: play ramps far below the rated torque load, their peak the
-    one both directions reach, with a note that the torque unit went unchecked."""
-    csv = hyst_csv(peak=30.0)
+def test_peak_torque_from_the_data_declares_a_partial_load_run_without_a_guess(write_files, tmp_path):
+    """``peak_torque_Nm = "data"``: play ramps far below the rated torque load, their loop
+    metrics at the loop's own peak, with a note that the torque unit went unchecked; a written
+    manifest keeps the declaration."""
+    from torsionfit.metrics import campaign_metrics
+
+    t = np.linspace(0.0, 24.0, 600)
+    torque = 30.0 * np.sin(2 * np.pi * t / 8.0)  # three cycles to ±30 N·m of a 100 N·m reducer
+    angle = torque / 20.0 + 2.0 * np.sign(np.cos(2 * np.pi * t / 8.0))  # arcmin: a loop 4 arcmin wide
+    csv = csv_text(("time_s", "torque_Nm", "angle_arcmin"), [t, torque, angle])
     path = write_files({"campaign.toml": manifest(hyst_run(peak_torque_Nm="data")), "h.csv": csv})
-    run = load_campaign(path).runs[0]
-    torque = np.loadtxt(csv.splitlines(), delimiter=",", comments="#", skiprows=2)[:, 1]
-    assert run.peak_torque_Nm == pytest.approx(min(torque.max(), -torque.min()))
-    assert any("peak_torque_Nm read off the data" in n and "not checked" in n for n in run.notes)
+    campaign = load_campaign(path)
+    run = campaign.runs[0]
+    assert run.peak_from_data and run.peak_torque_Nm is None
+    assert any('peak_torque_Nm = "data": a partial-load run' in n and "not checked" in n for n in run.notes)
+    metrics = campaign_metrics(campaign)["runs"][0]["metrics"]
+    assert "stiffness_rated" in metrics and "loop's own peak" in json.dumps(metrics), metrics
+    written = write_campaign(campaign, tmp_path / "out")
+    assert load_campaign(written).runs[0].peak_from_data
     # without it the rated torque is the nominal load the run must reach, and the line says how to declare it
     message = load_error(write_files({"campaign.toml": manifest(hyst_run()), "h.csv": csv}))
     assert 'or "data" for the peak its cycles reach' in message

@@ -58,6 +58,9 @@ class HysteresisRun:
     source: str = ""
     #: nominal peak load of the ramps (N·m); None = the reducer's rated torque
     peak_torque_Nm: float | None = None
+    #: the manifest's ``peak_torque_Nm = "data"``: a partial-load run whose loop metrics are
+    #: read at the loop's own peak (``peak_torque_Nm`` None)
+    peak_from_data: bool = False
     #: nominal temperature of the run (°C, the manifest's temperature_C key)
     nominal_temperature_C: float | None = None
     #: what reading changed (e.g. a dropped pad of non-finite rows), shown by ``metrics``

@@ -361,7 +361,8 @@ def write_campaign(campaign: Campaign, directory, *, label=None, bench_file=None
         file = _file_name(run.name, used)
         if isinstance(run, HysteresisRun):
             keys = dict(
-                loading_rate_Nm_per_s=run.loading_rate_Nm_per_s, peak_torque_Nm=run.peak_torque_Nm,
+                loading_rate_Nm_per_s=run.loading_rate_Nm_per_s,
+                peak_torque_Nm=PEAK_FROM_DATA if run.peak_from_data else run.peak_torque_Nm,
                 temperature_C=run.nominal_temperature_C,
             )
             columns = {

@@ -95,21 +95,22 @@ def _check_time(time: np.ndarray, table: Table, column: str, where: str) -> None
 
 def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> HysteresisRun:
     torque = si("torque")
-    peak_torque_Nm = spec.peak_torque_Nm
-    if peak_torque_Nm == PEAK_FROM_DATA:
-        # declared a partial-load run (play ramps, a selection of small cycles): its peak is the
-        # one both directions reach, and there is no nominal load to check the torque unit by
-        peak_torque_Nm = float(min(np.max(torque), -np.min(torque)))
-        if peak_torque_Nm <= 0.0:
-            raise InputError(f"{where}: peak_torque_Nm = \"{PEAK_FROM_DATA}\" reads the peak both directions reach, and "
-                             f"column {found['torque'].name!r} does not change sign ({np.min(torque):.4g} to "
+    from_data = spec.peak_torque_Nm == PEAK_FROM_DATA
+    peak_torque_Nm = None if from_data else spec.peak_torque_Nm
+    if from_data:
+        # declared a partial-load run (play ramps, a selection of small cycles): its loop metrics
+        # at the loop's own peak, and no nominal load to check the torque unit by
+        if not (np.max(torque) > 0.0 > np.min(torque)):
+            raise InputError(f"{where}: peak_torque_Nm = \"{PEAK_FROM_DATA}\" reads the loop's own peak, and column "
+                             f"{found['torque'].name!r} does not change sign ({np.min(torque):.4g} to "
                              f"{np.max(torque):.4g} N·m); expected loops through zero torque")
-        notes.append(f"peak_torque_Nm read off the data: {peak_torque_Nm:.4g} N·m (the smaller of the largest positive "
-                     f"and negative torque); the torque unit is not checked against a nominal load")
+        notes.append(f"peak_torque_Nm = \"{PEAK_FROM_DATA}\": a partial-load run (torque {np.min(torque):.4g} to "
+                     f"{np.max(torque):.4g} N·m), its loop metrics at the loop's own peak; the torque unit is not "
+                     f"checked against a nominal load")
     peak = peak_torque_Nm if peak_torque_Nm is not None else reducer.rated_torque_Nm
     reached = float(np.max(np.abs(torque)))
     # Without a nominal load (no peak_torque_Nm, no rated_torque_Nm) there is nothing to reach.
-    if spec.peak_torque_Nm != PEAK_FROM_DATA and peak is not None and reached < PEAK_FRACTION * peak:
+    if not from_data and peak is not None and reached < PEAK_FRACTION * peak:
         origin = "peak_torque_Nm" if spec.peak_torque_Nm is not None else "rated_torque_Nm"
         raise InputError(
             f"{where}: column {found['torque'].name!r} reaches only |torque| = {reached:.4g} N·m, "
@@ -139,6 +140,7 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
         temperature_C=si("temperature"),
         source=str(spec.path),
         peak_torque_Nm=peak_torque_Nm,
+        peak_from_data=from_data,
         nominal_temperature_C=spec.temperature_C,
         notes=tuple(notes),
         conditioning=conditioning,

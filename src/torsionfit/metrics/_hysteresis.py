@@ -1138,7 +1138,8 @@ def hysteresis_run_metrics(
     - :func:`hysteresis_metrics` on the full-range loop (:func:`loop_branches`: the largest
       cycles of a run that also holds small play ramps) at T_r = the rated torque, or the run's
       nominal peak load ``peak_torque_Nm`` when that is lower or no rated torque is given, or,
-      with neither, at the loop's own peak (said in the notes);
+      with neither or for a run declared partial-load (``peak_torque_Nm = "data"``), at the
+      loop's own peak (said in the notes);
     - ``play`` from the smallest cycles (:func:`play_from_arrays`);
     - ``stiffness_loading`` (N·m/arcmin) and ``compliance_loading_pos`` /
       ``compliance_loading_neg`` (deg/N·m) from the largest cycles (:func:`loading_fit`). A
@@ -1150,6 +1151,8 @@ def hysteresis_run_metrics(
     rated = None if rated_torque_Nm is None else float(rated_torque_Nm)
     peak = getattr(run, "peak_torque_Nm", None)
     t_r = rated if peak is None else float(peak) if rated is None else min(rated, float(peak))
+    if getattr(run, "peak_from_data", False):  # a partial-load run (peak_torque_Nm = "data")
+        t_r = None
     try:
         metrics.update(
             hysteresis_metrics(
