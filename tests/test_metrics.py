@@ -811,6 +811,32 @@ def test_measured_whole_file_run_gives_every_metric(tmp_path):
 
 
 @needs_jv
+def test_measured_play_ramps_alone_are_read_when_declared_partial_load(tmp_path):
+    """The five play ramps of a measured file (test_nr 0–4, ±4–6 N·m of a reducer rated 20):
+    without a declaration the rated torque's reach stops them with one line naming
+    ``peak_torque_Nm``; with ``peak_torque_Nm = "data"`` the play is the whole file's reading (within 1 %)
+    and the loop metrics are read at the loop's own peak, the loading slope with its reason."""
+    from torsionfit.io import load_campaign
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "cycloidal-jv" / "baseline-pccf-initial-pos1.toml"
+    text = example.read_text().replace('file = "../../../shared/data', f'file = "{JV.parent.as_posix()}')
+    text = text.split("\n[runs.select]")[0].rstrip() + "\n\n[runs.select]\ntest_nr = [0, 1, 2, 3, 4]\n"
+    plain = tmp_path / "play.toml"
+    plain.write_text(text)
+    with pytest.raises(InputError, match='set peak_torque_Nm for this run .* or "data"'):
+        load_campaign(plain)
+    declared = tmp_path / "play-declared.toml"
+    declared.write_text(text.replace('kind = "hysteresis"', 'kind = "hysteresis"\npeak_torque_Nm = "data"'))
+    (run,) = campaign_metrics(load_campaign(declared))["runs"]
+    (whole,) = campaign_metrics(load_campaign(example))["runs"]
+    m = run["metrics"]
+    assert value(m, "play") == pytest.approx(value(whole["metrics"], "play"), rel=0.01)  # the ramps at its ends
+    assert {"backlash", "stiffness_rated", "lost_motion"} <= set(m)
+    assert value(m, "rated_torque") < 6.0  # the loop's own peak, not the reducer's 20 N·m
+    assert "stiffness_loading" not in m and "play ramps" in run["notes"]["stiffness_loading"]
+
+
+@needs_jv
 def test_measured_positions_are_the_files_found():
     script = _measured_metrics_script()
     assert script.positions("baseline-pccf", "initial") == ["pos1", "pos5", "pos6"]
