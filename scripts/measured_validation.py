@@ -308,11 +308,11 @@ def fit_options(args, unit: str | None = None) -> FitOptions:
 def validate(unit: str, folder: Path, args) -> dict:
     path = _data_path(unit)
     ramps = test_numbers(path)
-    last = held_ramp(ramps, getattr(args, "hold_out_ramp", 1))
-    ramps = [r for r in ramps if r <= last]  # ramps after the held-out one (--hold-out-ramp): predicted, unscored
+    from_end = getattr(args, "hold_out_ramp", 1)
+    last = held_ramp(ramps, from_end)  # the ramps after it (--hold-out-ramp): predicted, unscored
     # --condition-first-ramp: the first large ramp (test_nr ≥ 100) drives the state, unfitted
     condition = [min(r for r in ramps if r >= 100)] if getattr(args, "condition_first_ramp", False) else None
-    train = load_campaign(manifest(unit, [r for r in ramps if r != last], folder, condition))
+    train = load_campaign(manifest(unit, [r for r in ramps if r < last], folder, condition))
     whole = decimate(load_campaign(manifest(unit, None, folder)), args.decimate)
     shift = None
     if getattr(args, "align_play_crossings", False):
@@ -398,9 +398,9 @@ def validate(unit: str, folder: Path, args) -> dict:
         out["compliance_model_deg_per_Nm"] = {"mean": float(np.mean(mean_c)), "hdi95": _hdi(mean_c),
                                              "pos": float(np.mean(comps[:, 0])), "neg": float(np.mean(comps[:, 1])),
                                              "draws": [float(v) for v in mean_c]}
-    out["reference"] = _reference(path, args.decimate, held, len(y), last)
+    out["reference"] = _reference(path, args.decimate, len(y), last)
     out["ratio_held_out"] = out["rmse_held_out_arcsec"] / out["reference"]["oos_rest"]
-    _figure(unit, t, tau, y, pred, lo, hi, held, fitted, args.output / "figures", held_text(getattr(args, "hold_out_ramp", 1)))
+    _figure(unit, t, tau, y, pred, lo, hi, held, fitted, args.output / "figures", held_text(from_end))
     if args.save_predictions is not None:
         # for re-scoring without a refit; derived from the measured file: keep outside the repository
         args.save_predictions.mkdir(parents=True, exist_ok=True)
@@ -465,18 +465,17 @@ def reference_prediction(loop: dict, signed: bool = True, held_nr: int | None = 
     return PIReference(signed_play=signed).fit(loop["torque_Nm"], loop["angle_rad"] - offset, fitted).predict() + offset
 
 
-def _reference(path: Path, size: int, held, n: int, held_nr: int | None = None) -> dict:
+def _reference(path: Path, size: int, n: int, held_nr: int) -> dict:
     """The Prandtl–Ishlinskii reference fitted to the raw samples before the held-out ramp
-    ``held_nr`` (default: the last large ramp), scored on block means of ``size`` samples of
-    that ramp (as the model)."""
+    ``held_nr``, scored on the ``n`` block means of ``size`` samples of that ramp (as the model)."""
     from pi_reference import PIReference, read_loop
     from repeat_reference import held_out_prediction
 
     t0 = time.perf_counter()
     d = read_loop(path)
     y = d["angle_rad"] - d["angle_rad"].mean()
-    held_nr = int(d["test_nr"].max()) if held_nr is None else held_nr
     fitted = d["test_nr"] < held_nr
+    held = _block(d["test_nr"], size, n, np.min) == held_nr
     out = {}
     # the reference as designed (play weights of either sign: a loop drawn counter-clockwise where
     # the torque estimate runs ahead of the gap crossing, which no physical hysteresis does), and
@@ -501,11 +500,8 @@ def refresh_references(rows: list[dict], size: int, hold_out_ramp: int = 1) -> N
     """Recompute every row's reference columns in place (cheap: no model fit)."""
     for row in rows:
         path = _data_path(row["unit"])
-        nr_raw = _test_nr_of(path)
-        n = len(nr_raw) // size
-        last = held_ramp(test_numbers(path), hold_out_ramp)
-        held = _block(nr_raw, size, n, np.min) == last
-        row["reference"] = _reference(path, size, held, n, last)
+        n = len(_test_nr_of(path)) // size
+        row["reference"] = _reference(path, size, n, held_ramp(test_numbers(path), hold_out_ramp))
         row["ratio_held_out"] = row["rmse_held_out_arcsec"] / row["reference"]["oos_rest"]
 
 

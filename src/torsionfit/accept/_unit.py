@@ -50,16 +50,14 @@ def bind_to_campaign(spec: Spec, campaign, options: FitOptions = FitOptions()):
 
 
 def _bound_to_fit(spec: Spec, bound, fit, campaign):
-    """``bound`` with its columns in ``fit.metric_draws``: a metric the fit could not read
-    (``diagnostics.metrics_not_computed``) is left out of them, and a requirement on it stops
-    with one line naming the unit, the requirement and why."""
+    """``bound`` with its columns in ``fit.metric_draws`` (a metric the fit could not read,
+    ``diagnostics.metrics_not_computed``, is left out of them); a requirement on such a metric
+    stops with one line naming the unit, the requirement and why."""
     not_computed = fit.diagnostics.get("metrics_not_computed") or {}
     for b in bound:
         if b.requirement.metric in not_computed:
             raise InputError(f"{campaign.path or campaign.reducer.name}: {b.requirement.where}: "
                              f"{b.requirement.metric} is not computed for this unit ({not_computed[b.requirement.metric]})")
-    if not not_computed:
-        return bound
     return bind_requirements(spec, fit.metric_specs, bool(campaign.te_runs))
 
 

@@ -24,7 +24,7 @@ from ..units import ANGLE_UNITS
 from ._catalog import CATALOG, Effect
 from ._context import FitContext, fit_context, jump_reading, moves_in_jumps
 from ._selection import Comparison, Score, compare, score
-from ._signature import HUBER_SDS, Evidence, regression_evidence
+from ._signature import HUBER_SDS, Evidence, least_squares_log10_p, regression_evidence
 
 ARCSEC = ANGLE_UNITS["arcsec"]
 
@@ -217,10 +217,7 @@ def _gain_rank(ev: Evidence) -> float:
     evidence's own search corrections. The refit is judged by the Gaussian ELPD of every sample,
     the jumps included, whose first-order gain the least-squares Δχ² predicts; a winsorised test
     says that an effect is there behind the jumps, not how much that ELPD will reward it."""
-    by_test = ev.details.get("log10_p_by_test", {})
-    if "least-squares" not in by_test or len(by_test) < 2:
-        return ev.log10_p
-    return ev.log10_p - (min(by_test.values()) + np.log10(len(by_test))) + by_test["least-squares"]
+    return least_squares_log10_p(ev)
 
 
 def _against_rivals(campaign: Campaign, options: DiagnoseOptions, seed: int, effects: dict, accepted: Step,

@@ -185,4 +185,19 @@ def regression_evidence(effect: str, runs, columns, description: str, details=No
     out["coefficients"] = [float(c) for c in coef]
     out["test"] = name
     out["log10_p_by_test"] = {n: float(v) for n, v in p.items()}
-    return Evidence(effect, stat, k, min(0.0, p[name] + np.log10(len(found))), share, description, out)
+    return Evidence(effect, stat, k, _over_tests(p[name], len(found)), share, description, out)
+
+
+def _over_tests(log10_p: float, n_tests: int) -> float:
+    """The better of ``n_tests`` tests' log10 p, Bonferroni over them (at most p = 1)."""
+    return min(0.0, log10_p + float(np.log10(n_tests)))
+
+
+def least_squares_log10_p(ev: Evidence) -> float:
+    """``ev``'s log10 p with its least-squares test in place of the pair it was counted from
+    (:func:`regression_evidence`), the corrections applied to it since (searches over shapes
+    or orders) kept; ``ev.log10_p`` where least squares was its only test."""
+    by_test = ev.details.get("log10_p_by_test", {})
+    if "least-squares" not in by_test or len(by_test) < 2:
+        return ev.log10_p
+    return ev.log10_p - _over_tests(min(by_test.values()), len(by_test)) + by_test["least-squares"]

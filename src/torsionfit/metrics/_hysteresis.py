@@ -1150,9 +1150,10 @@ def hysteresis_run_metrics(
     notes: dict[str, str] = {}
     rated = None if rated_torque_Nm is None else float(rated_torque_Nm)
     peak = getattr(run, "peak_torque_Nm", None)
-    t_r = rated if peak is None else float(peak) if rated is None else min(rated, float(peak))
     if getattr(run, "peak_from_data", False):  # a partial-load run (peak_torque_Nm = "data")
         t_r = None
+    else:
+        t_r = rated if peak is None else float(peak) if rated is None else min(rated, float(peak))
     try:
         metrics.update(
             hysteresis_metrics(

@@ -84,23 +84,29 @@ def against_data(metrics: dict, readings: dict) -> list[str]:
     return off
 
 
-def unreadable_note(name: str, campaign, n_draws: int, read_share: float = 0.0) -> str:
-    """Why the metric ``name`` is left out of a fit: its definition reads a value off the model
-    on ``read_share`` (< ½) of the ``n_draws`` draws (fit.json's
+def unreadable_notes(read_shares: dict[str, float], campaign, n_draws: int) -> dict[str, str]:
+    """Why each metric of ``read_shares`` is left out of a fit: its definition reads a value off
+    the model on that share (< ½) of the ``n_draws`` draws (fit.json's
     ``diagnostics.metrics_not_computed``); for a class metric, the data-only reading's own
-    reason where it fails too."""
-    reason = (f"its definition reads no value off the model on any of {n_draws} draws" if read_share == 0 else
-              f"its definition reads a value off the model on only {100 * read_share:.0f} % of {n_draws} draws")
-    if name not in UNITS:
-        return reason
-    classes = record_classes(campaign)
-    if classes is None:
-        return reason + "; the data has no hysteresis run whose cycles can be grouped"
-    try:
-        class_readings(classes.small, classes.large, name=classes.large_run.name)
-    except InputError as err:
-        return f"{reason}; the data-only reading fails as well: {err}"
-    return reason + " (the data-only reading has one: torsionfit metrics)"
+    reason where it fails too (read once for all of them)."""
+    data = None
+    if set(read_shares) & set(UNITS):
+        classes = record_classes(campaign)
+        if classes is None:
+            data = "; the data has no hysteresis run whose cycles can be grouped"
+        else:
+            try:
+                class_readings(classes.small, classes.large, name=classes.large_run.name)
+                data = " (the data-only reading has one: torsionfit metrics)"
+            except InputError as err:
+                data = f"; the data-only reading fails as well: {err}"
+    notes = {}
+    for name, share in read_shares.items():
+        notes[name] = (f"its definition reads no value off the model on any of {n_draws} draws" if share == 0 else
+                       f"its definition reads a value off the model on only {100 * share:.0f} % of {n_draws} draws")
+        if name in UNITS:
+            notes[name] += data
+    return notes
 
 
 def off_data_note(metrics: dict, off: list[str]) -> str:

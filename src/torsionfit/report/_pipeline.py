@@ -29,7 +29,7 @@ from ..fit._misfit import MISFIT_RHO, misfit_correlated_runs, widen_for_misfit
 from ..io import Campaign, decimate
 from ..model import SteppedBacklash, model_with_effects
 from ..units import ANGLE_UNITS
-from ._against_data import against_data, data_readings, off_data_note, unreadable_note
+from ._against_data import against_data, data_readings, off_data_note, unreadable_notes
 from ._derived import derived_metrics_for
 from ._follows import left_by_posterior_reason, not_followed_reason, runs_left_by_posterior, runs_not_followed
 
@@ -562,12 +562,12 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     # a metric its definition reads off no draw, or off fewer than half of them (the loading
     # slope of a record whose largest cycles have no branch beyond the play, …), is left out
     # with a note rather than every metric with it, or the draws it happens to read
-    read_share = np.mean(np.isfinite(all_metric_draws), axis=0) if len(all_metric_draws) else np.ones(len(derived.specs))
+    read_share = np.mean(np.isfinite(all_metric_draws), axis=0)
     readable = read_share >= 0.5
     specs = tuple(s for s, ok in zip(derived.specs, readable) if ok)
     if not readable.all():
-        unread = {s.name: unreadable_note(s.name, campaign, len(all_metric_draws), share)
-                  for s, ok, share in zip(derived.specs, readable, read_share) if not ok}
+        unread = unreadable_notes({s.name: share for s, ok, share in zip(derived.specs, readable, read_share) if not ok},
+                                  campaign, len(all_metric_draws))
         diagnostics["metrics_not_computed"] = unread
         warnings.warn("metrics not computed: " + "; ".join(f"{k}: {v}" for k, v in unread.items()))
         all_metric_draws = all_metric_draws[:, readable]
