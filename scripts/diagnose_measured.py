@@ -39,7 +39,7 @@ def trail_rows(unit: str, doc: dict, seconds: float) -> list[str]:
     keep = DiagnoseOptions()
     for s in doc["rejected"]:
         # earned its keep but another candidate of the same step earned more
-        outgained = keep.earns_keep(s["delta_elpd"], s["delta_elpd_se"])
+        outgained = keep.earns_keep(s["delta_elpd"], s["delta_elpd_se"], s["rmse_before"], s["rmse_after"])
         rows.append(f"| | tried, {'outgained' if outgained else 'not kept'}: {s['effect']} | {s['evidence']['log10_p']:.1f} | {s['rmse_before']:.0f} → "
                     f"{s['rmse_after']:.0f} | | {s['delta_elpd']:.0f} ± {s['delta_elpd_se']:.0f} | |")
     left = doc["unexplained_description"] if doc["unexplained"] else "nothing significant"
@@ -70,7 +70,7 @@ def refit_each(units: list[str], args) -> int:
             trial = fit_with(campaign, {name: value}, options, args.seed, warm=base)
             c = compare(base.score, trial.score)
             print(f"| | {name} = {json.dumps(value)} | {base.rmse_arcsec:.0f} → {trial.rmse_arcsec:.0f} | "
-                  f"{c.delta:.0f} ± {c.se:.0f} | {'yes' if options.earns_keep(c.delta, c.se) else 'no'} |", flush=True)
+                  f"{c.delta:.0f} ± {c.se:.0f} | {'yes' if options.earns_keep(c.delta, c.se, base.rmse_arcsec, trial.rmse_arcsec) else 'no'} |", flush=True)
         jax.clear_caches()
     return 0
 

@@ -112,7 +112,7 @@ def row(entry: Entry, case, d, seconds: float) -> dict:
     keep = DiagnoseOptions()
     rejected = "; ".join(
         f"{s.effect} {s.delta_elpd:.1f} ± {s.delta_elpd_se:.1f}"
-        + (" (outgained)" if keep.earns_keep(s.delta_elpd, s.delta_elpd_se) else "")
+        + (" (outgained)" if keep.earns_keep(s.delta_elpd, s.delta_elpd_se, s.before.rmse_arcsec, s.after.rmse_arcsec) else "")
         for s in d.rejected) or "—"
     return {
         "case": entry.name, "bench": entry.bench, "truth": _short(case.truth) or "nothing",

@@ -63,7 +63,8 @@ def summary_text(doc: dict) -> str:
                      f"{s['rmse_after']:.3g}″   max {s['max_abs_before']:.3g}″ → {s['max_abs_after']:.3g}″   "
                      f"ΔELPD {s['delta_elpd']:.1f} ± {s['delta_elpd_se']:.1f} ({s['criterion']})")
     for s in doc["rejected"]:
-        lines.append(f"  {s['effect']:24s} tried, not kept: ΔELPD {s['delta_elpd']:.1f} ± {s['delta_elpd_se']:.1f} ({s['criterion']})")
+        lines.append(f"  {s['effect']:24s} tried, not kept: ΔELPD {s['delta_elpd']:.1f} ± {s['delta_elpd_se']:.1f} ({s['criterion']}), "
+                     f"RMSE {s['rmse_before']:.3g}″ → {s['rmse_after']:.3g}″")
     lines.append(f"final: RMSE {doc['rmse_final']:.3g}″ (noise estimate {doc['noise_estimate']:.3g}″), "
                  f"effects added: {', '.join(doc['added']) or 'none'}")
     if doc.get("final_metrics"):

@@ -1,0 +1,132 @@
+"""torsionfit on loops it was not built from: ``benchmarks/independent_bench.py``, a NumPy
+simulator that shares no code with torsionfit's model (SYNTHETIC data throughout).
+
+Its torque-side reducer has torsionfit's arrangement (friction between the applied torque and
+the mesh) built from other parts — several Dahl elements whose levels grow with the load, a
+cubic hardening spring, a gap crossed along a smoothstep — and is read like the measured
+cycloidal files: play ramps then stiffness ramps in one file, the angle in output revolutions
+with an offset, an encoder step of 19.8″ with white noise below it, the torque from "motor
+current" with noise of its own. Checked here: the simulator is what it says, the data-only
+metrics do not move with noise below the encoder step, ``diagnose`` adds nothing to the clean
+loop and finds the load-dependent and the distributed friction where they are on, and no step
+it keeps leaves the residual larger.
+"""
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from torsionfit.diagnose import DiagnoseOptions, diagnose
+from torsionfit.fit import NoiseOptions
+from torsionfit.io import load_campaign
+from torsionfit.metrics import campaign_metrics
+
+from test_diagnose import RUN_ZOO_CASES
+
+_ROOT = Path(__file__).resolve().parents[1]
+_spec = importlib.util.spec_from_file_location("_independent_bench", _ROOT / "benchmarks" / "independent_bench.py")
+bench = importlib.util.module_from_spec(_spec)
+sys.modules[_spec.name] = bench  # dataclasses look the module up while the class is created
+_spec.loader.exec_module(bench)
+
+ARCMIN = math.radians(1.0 / 60.0)
+#: the load-dependent variants of the catalog: the level growing with |τ| at once, through a lag,
+#: or remembering the peak — each is "friction that grows with the transmitted torque"
+LOAD_DEPENDENT = {"load_dependent_friction", "friction_load_lag", "friction_load_memory"}
+#: sample rate of the diagnosed records (Hz): 2000 samples, the measured files' block means of 16
+#: give 2100–2200
+RATE_HZ = 25.0
+#: left out of the suite for its time: TORSIONFIT_DIAGNOSE_ZOO_CASES=1 runs it
+ZOO = pytest.mark.skipif(not RUN_ZOO_CASES, reason="left out of the suite for its time: TORSIONFIT_DIAGNOSE_ZOO_CASES=1 runs it")
+
+
+def _campaign(tmp_path, reducer, name, seed=0, noisy=True, rate_Hz=RATE_HZ):
+    return load_campaign(bench.write_campaign(tmp_path / name, reducer, name, seed, rate_Hz=rate_Hz, noisy=noisy))
+
+
+def test_clean_torque_side_loop_is_the_textbook_one():
+    """One Dahl element, a linear spring: at the +40 N·m peak of a large ramp the friction is
+    saturated (z = 1 − e^(−Δτ/τ_d), Δτ = 80 N·m of rising torque ≫ τ_d = 3 N·m), so the twist is
+    ``(40 − T_f)/K + β/2`` there and ``(−40 + T_f)/K − β/2`` at −40 N·m."""
+    reducer = bench.clean_torque_side_reducer()
+    _, torque, test_nr = bench.torque_program(rate_Hz=50.0)
+    twist = bench.simulate_twist(reducer, torque)
+    k, level, beta = reducer.stiffness_Nm_per_rad, reducer.element_level_Nm[0], reducer.gap_rad
+    for nr in (101, 102):
+        cycle = test_nr == nr
+        top, bottom = np.argmax(np.where(cycle, torque, -np.inf)), np.argmin(np.where(cycle, torque, np.inf))
+        assert twist[top] == pytest.approx((torque[top] - level) / k + beta / 2, abs=1e-3 * ARCMIN)
+        assert twist[bottom] == pytest.approx((torque[bottom] + level) / k - beta / 2, abs=1e-3 * ARCMIN)
+
+
+def test_the_hardening_spring_and_the_load_dependent_level_are_as_declared():
+    reducer = bench.TorqueSideReducer()
+    theta = reducer.elastic_twist(np.array([-30.0, 0.0, 10.0, 40.0]))
+    k, s = reducer.stiffness_Nm_per_rad, reducer.stiffening_twist_rad
+    np.testing.assert_allclose(k * theta * (1.0 + (theta / s) ** 2), [-30.0, 0.0, 10.0, 40.0], atol=1e-9)
+    assert reducer.levels(40.0).sum() == pytest.approx(sum(reducer.element_level_Nm) + reducer.level_load_coefficient * 40.0)
+
+
+@pytest.mark.parametrize("reducer", [bench.TorqueSideReducer(), bench.TwistSideReducer()], ids=["torque-side", "twist-side"])
+def test_data_only_metrics_do_not_move_with_noise_below_the_encoder_step(tmp_path, reducer):
+    """``play`` and ``stiffness_loading`` read off the noisy, quantised record (noise 0.3 encoder
+    steps, 0.05 N·m of torque noise) against the same definitions on the noiseless twist."""
+    noisy = campaign_metrics(_campaign(tmp_path, reducer, "noisy", rate_Hz=50.0))["runs"][0]["metrics"]
+    truth = campaign_metrics(_campaign(tmp_path, reducer, "truth", noisy=False, rate_Hz=50.0))["runs"][0]["metrics"]
+    for name in ("play", "stiffness_loading"):
+        assert noisy[name]["value"] == pytest.approx(truth[name]["value"], rel=0.02), name
+
+
+def test_diagnose_adds_nothing_to_the_clean_independent_loop(tmp_path):
+    """What the base model has (one Dahl element, a constant level, a linear spring) built by
+    another hand, with a smoothstep gap in place of the tanh: nothing to add (iid noise, as the
+    measured loops are diagnosed), and the base fit reads the gap and the friction level."""
+    reducer = bench.clean_torque_side_reducer()
+    result = diagnose(_campaign(tmp_path, reducer, "clean"), DiagnoseOptions(noise=NoiseOptions(ar1=False)), seed=0)
+    assert [s.effect for s in result.steps] == []
+    params = result.final.map_result.values
+    assert params["gap"] == pytest.approx(reducer.gap_rad, rel=0.05)
+    assert params["friction_torque"] == pytest.approx(reducer.element_level_Nm[0], rel=0.05)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed,rate_Hz", [pytest.param(0, RATE_HZ, id="seed0-25Hz"), pytest.param(1, 20.0, id="seed1-20Hz", marks=ZOO)])
+def test_diagnose_finds_the_load_dependent_and_distributed_friction(tmp_path, seed, rate_Hz):
+    """Three Dahl elements whose levels grow with the load (3.4 N·m at no load, 9.4 at 40 N·m),
+    undeclared, under iid noise (as the measured loops are diagnosed): ``diagnose`` adds a
+    friction level growing with the load and the slip elements, and the gap it ends with is the
+    simulator's within 10 %. Two refits per step and two steps, for the suite's time (the full
+    trail, ``scripts/independent_bench_report.py``, adds the hardening spring third)."""
+    reducer = bench.TorqueSideReducer()
+    options = DiagnoseOptions(noise=NoiseOptions(ar1=False), candidates_per_step=2, max_effects=2)
+    result = diagnose(_campaign(tmp_path, reducer, "loaded", seed=seed, rate_Hz=rate_Hz), options, seed=seed)
+    added = {s.effect for s in result.steps}
+    assert added & LOAD_DEPENDENT, f"added {sorted(added)}"
+    assert "distributed_friction" in added, f"added {sorted(added)}"
+    assert result.final.map_result.values["gap"] == pytest.approx(reducer.gap_rad, rel=0.10)
+    assert result.final.rmse_arcsec < 0.5 * result.base.rmse_arcsec
+
+
+def test_an_elpd_gain_with_a_larger_residual_does_not_earn_its_keep():
+    """Under the default AR(1) noise the slip elements' refit of the load-dependent loop (50 Hz)
+    gained ΔELPD 328 ± 143 with an RMSE of 160″ against the 78″ it started from, the gap's share
+    of the twist lost: AR(1) noise near a unit root prices a smooth misfit below a sharp one."""
+    options = DiagnoseOptions()
+    assert not options.earns_keep(328.3, 142.8, 78.0, 160.0)
+    assert options.earns_keep(328.3, 142.8, 78.0, 78.0 * (1.0 + 0.5 * options.max_rmse_rise))
+    assert options.earns_keep(328.3, 142.8)  # the ELPD alone, as before
+
+
+@ZOO
+def test_no_kept_step_leaves_the_residual_larger(tmp_path):
+    """The trail of that loop under the default noise: every kept step leaves the RMSE no more
+    than ``max_rmse_rise`` above its start, and the level growing with the load is found."""
+    options = DiagnoseOptions()
+    result = diagnose(_campaign(tmp_path, bench.TorqueSideReducer(), "loaded", rate_Hz=50.0), options, seed=0)
+    for step in result.steps:
+        assert step.after.rmse_arcsec <= (1.0 + options.max_rmse_rise) * step.before.rmse_arcsec, step.effect
+    assert {s.effect for s in result.steps} & LOAD_DEPENDENT
