@@ -12,6 +12,7 @@ loop and finds the load-dependent and the distributed friction where they are on
 it keeps leaves the residual larger.
 """
 
+import dataclasses
 import importlib.util
 import math
 import sys
@@ -103,12 +104,19 @@ def test_diagnose_finds_the_load_dependent_and_distributed_friction(tmp_path, se
     trail, ``scripts/independent_bench_report.py``, adds the hardening spring third)."""
     reducer = bench.TorqueSideReducer()
     options = DiagnoseOptions(noise=NoiseOptions(ar1=False), candidates_per_step=2, max_effects=2)
-    result = diagnose(_campaign(tmp_path, reducer, "loaded", seed=seed, rate_Hz=rate_Hz), options, seed=seed)
+    campaign = _campaign(tmp_path, reducer, "loaded", seed=seed, rate_Hz=rate_Hz)
+    result = diagnose(campaign, options, seed=seed)
     added = {s.effect for s in result.steps}
     assert added & LOAD_DEPENDENT, f"added {sorted(added)}"
     assert "distributed_friction" in added, f"added {sorted(added)}"
     assert result.final.map_result.values["gap"] == pytest.approx(reducer.gap_rad, rel=0.10)
     assert result.final.rmse_arcsec < 0.5 * result.base.rmse_arcsec
+    if seed == 0:
+        # the trail applies the RMSE rule to every refit: asked for a tenfold cut per step (the
+        # rule's bound moved below the start), it keeps none of the refits that earned ΔELPD above
+        strict = diagnose(campaign, dataclasses.replace(options, max_rmse_rise=-0.9, max_effects=1), seed=seed)
+        assert strict.steps == [] and len(strict.rejected) == options.candidates_per_step
+        assert any(options.earns_keep(s.delta_elpd, s.delta_elpd_se) for s in strict.rejected)
 
 
 def test_an_elpd_gain_with_a_larger_residual_does_not_earn_its_keep():
