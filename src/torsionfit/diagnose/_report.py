@@ -74,6 +74,8 @@ def summary_text(doc: dict) -> str:
             lines.append(f"  {name:34s} {e['mean']:11.5g}   [{lo:10.5g}, {hi:10.5g}]  {e['unit']}")
         if doc["final_metrics"].get("metrics_off_data_note"):
             lines.append(f"  off the data: {doc['final_metrics']['metrics_off_data_note']}")
+        if doc["final_metrics"].get("friction_hook_note"):
+            lines.append(f"  physics: {doc['final_metrics']['friction_hook_note']}")
     lines.append("unexplained: " + (doc["unexplained_description"] if doc["unexplained"] else _NOTHING_LEFT))
     lines += [f"note: {n}" for n in doc.get("notes", [])]
     return "\n".join(lines)
@@ -96,8 +98,8 @@ def final_metrics(d: Diagnosis, seed: int = 0) -> dict:
             "metrics": doc["metrics"], "parameters": doc["parameters"],
             # the metrics the data read directly whose reading the final model's interval misses
             "metrics_off_data": doc["diagnostics"]["metrics_off_data"],
-            **({"metrics_off_data_note": doc["diagnostics"]["metrics_off_data_note"]}
-               if "metrics_off_data_note" in doc["diagnostics"] else {})}
+            **{key: doc["diagnostics"][key] for key in ("metrics_off_data_note", "friction_hook_note")
+               if key in doc["diagnostics"]}}
 
 
 def write_diagnosis(d: Diagnosis, campaign, out_dir, seed: int = 0, command: str | None = None) -> dict:

@@ -31,6 +31,7 @@ from ..model import SteppedBacklash, model_with_effects
 from ..units import ANGLE_UNITS
 from ._against_data import against_data, data_readings, off_data_note, unreadable_notes
 from ._derived import derived_metrics_for
+from ._physical import dahl_hook_note
 from ._follows import left_by_posterior_reason, not_followed_reason, runs_left_by_posterior, runs_not_followed
 
 ARCSEC = ANGLE_UNITS["arcsec"]
@@ -642,6 +643,13 @@ def fit_json(fit: CampaignFit, command: str | None = None) -> dict:
             physics[key] = {**summarise(np.asarray(forward(p.constraint, jnp.asarray(fit.draws_u[:, i])))),
                             "unit": p.unit, "description": p.description}
             i += 1
+    hysteresis = fit.campaign.hysteresis_runs
+    if hysteresis:
+        # at the posterior mean and the largest load any loop reaches
+        peak = max(float(np.max(np.abs(r.torque_Nm))) for r in hysteresis)
+        hook = dahl_hook_note(problem.model.friction, {k: v["mean"] for k, v in physics.items()}, peak)
+        if hook:
+            diagnostics["friction_hook_note"] = hook
     return {
         "campaign": str(fit.campaign.path) if fit.campaign.path else None,
         "label": fit.campaign.notes,
@@ -732,6 +740,8 @@ def summary_table(doc: dict) -> str:
         lines.append(f"laplace: {d['laplace_note']}")
     if d.get("metrics_off_data_note"):
         lines.append(f"off the data: {d['metrics_off_data_note']}")
+    if d.get("friction_hook_note"):
+        lines.append(f"physics: {d['friction_hook_note']}")
     for name, note in (d.get("metrics_not_computed") or {}).items():
         lines.append(f"not computed: {name}: {note}")
     lines.append("RMSE: " + ", ".join(f"{k} {v['value']:.3g}″" for k, v in doc["rmse"].items()))

@@ -1,0 +1,49 @@
+"""report/_physical.py: a fitted Dahl element whose friction turns faster than the applied
+torque after a reversal (the twist runs back: a hook) is named, against the forward model."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from torsionfit.model import DahlFriction, MaxwellSlipFriction
+from torsionfit.report._physical import dahl_hook_note, dahl_hook_ratio
+
+
+def _mesh_after_reversal(friction, params, peak_Nm=25.0, step_Nm=0.05):
+    """Mesh torque change over the first step after a reversal at +peak, per applied N·m."""
+    up = np.arange(0.0, peak_Nm + step_Nm / 2, step_Nm)
+    tau = jnp.asarray(np.concatenate([up, peak_Nm - step_Nm * np.arange(1, 4)]))
+    mesh = np.asarray(tau - friction.friction_torque(params, tau))
+    i = up.size - 1  # the peak
+    return (mesh[i + 1] - mesh[i]) / -step_Nm
+
+
+@pytest.mark.parametrize("dahl_torque,hooks", [(2.2, True), (5.0, True), (6.0, False), (12.0, False)])
+def test_the_ratio_says_when_the_model_runs_back(dahl_torque, hooks):
+    """T_f = 2.9 N·m (a measured baseline loop's base fit: τ_d = 2.2 N·m): the forward model's
+    mesh torque rises as the torque falls just after the peak exactly when the ratio exceeds 1."""
+    friction, params = DahlFriction(), {"friction_torque": 2.9, "dahl_torque": dahl_torque}
+    ratio = dahl_hook_ratio(friction, params, 25.0)
+    assert ratio == pytest.approx(2 * 2.9 / dahl_torque)
+    assert (_mesh_after_reversal(friction, params) < 0) == hooks  # per N·m of falling torque: < 0 is rising
+    note = dahl_hook_note(friction, params, 25.0)
+    assert bool(note) == hooks
+    if hooks:
+        assert f"τ_d = {dahl_torque:.3g} N·m" in note and "runs back" in note and " at 25 N·m" not in note
+
+
+def test_a_load_dependent_level_counts_at_the_largest_load():
+    friction = DahlFriction(load_dependent=True)
+    params = {"friction_torque": 1.0, "dahl_torque": 10.0, "friction_load_coefficient": 0.2}
+    assert dahl_hook_ratio(friction, params, 40.0) == pytest.approx(2 * (1.0 + 0.2 * 40.0) / 10.0 + 0.2)
+    assert "reversal at 40 N·m" in dahl_hook_note(friction, params, 40.0)
+    assert _mesh_after_reversal(friction, params, peak_Nm=40.0) < 0
+    assert dahl_hook_note(friction, params, 2.0) == ""  # small loops: level 1.4 N·m, ratio 0.48
+
+
+def test_slip_elements_never_hook():
+    friction = MaxwellSlipFriction(n_elements=4)
+    params = {"friction_torque": 3.0, "breakaway_spread": 0.8}
+    assert np.isnan(dahl_hook_ratio(friction, params, 25.0))
+    assert dahl_hook_note(friction, params, 25.0) == ""
+    assert _mesh_after_reversal(friction, params) >= -1e-12  # stuck elements hold the mesh torque
