@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from torsionfit.model import DahlFriction, MaxwellSlipFriction
-from torsionfit.report._physical import dahl_hook_note, dahl_hook_ratio
+from torsionfit.report._physical import dahl_hook_note, dahl_hook_ratio, dahl_hook_rise_Nm
 
 
 def _mesh_after_reversal(friction, params, peak_Nm=25.0, step_Nm=0.05):
@@ -30,6 +30,11 @@ def test_the_ratio_says_when_the_model_runs_back(dahl_torque, hooks):
     assert bool(note) == hooks
     if hooks:
         assert f"τ_d = {dahl_torque:.3g} N·m" in note and "runs back" in note and " at 25 N·m" not in note
+    # the rise the note gives is the forward model's: the mesh torque's largest excess over its value at the peak
+    up = np.arange(0.0, 25.0 + 0.0025, 0.005)
+    tau = jnp.asarray(np.concatenate([up, 25.0 - 0.005 * np.arange(1, 4000)]))
+    mesh = np.asarray(tau - friction.friction_torque(params, tau))
+    assert dahl_hook_rise_Nm(friction, params, 25.0) == pytest.approx(max(mesh[up.size - 1:].max() - mesh[up.size - 1], 0.0), abs=0.02)
 
 
 def test_a_load_dependent_level_counts_at_the_largest_load():

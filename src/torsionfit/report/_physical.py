@@ -27,6 +27,18 @@ def dahl_hook_ratio(friction, params: dict, peak_load_Nm: float) -> float:
     return 2.0 * level / float(params["dahl_torque"]) + mu
 
 
+def dahl_hook_rise_Nm(friction, params: dict, peak_load_Nm: float) -> float:
+    """How far the mesh torque rises after a reversal before it turns (N·m): with
+    ``r = 2·level/τ_d`` the rise ``−x + 2·level·(1 − e^(−x/τ_d))`` peaks at ``τ_d·(r − 1 − ln r)``
+    (the level's own growth with the load left out); 0 when the element does not hook."""
+    if not isinstance(friction, DahlFriction):
+        return 0.0
+    mu = float(params.get("friction_load_coefficient", 0.0)) if friction.load_dependent else 0.0
+    tau_d = float(params["dahl_torque"])
+    r = 2.0 * (float(params["friction_torque"]) + mu * float(peak_load_Nm)) / tau_d
+    return tau_d * (r - 1.0 - np.log(r)) if r > 1.0 else 0.0
+
+
 def dahl_hook_note(friction, params: dict, peak_load_Nm: float) -> str:
     """One line when the fitted Dahl element hooks (:func:`dahl_hook_ratio` > 1), else ""."""
     ratio = dahl_hook_ratio(friction, params, peak_load_Nm)
@@ -36,6 +48,8 @@ def dahl_hook_note(friction, params: dict, peak_load_Nm: float) -> str:
     where = f" at {peak_load_Nm:.3g} N·m" if mu > 0 else ""
     return (f"the Dahl friction hooks: its saturation torque τ_d = {float(params['dahl_torque']):.3g} N·m is below what "
             f"its level needs ({ratio:.2f} × the applied torque's change turns into friction just after a "
-            f"reversal{where}), so after every reversal the model's twist runs back before the loop turns; the "
-            "loops' flat spans are longer than one Dahl element draws, and the split between friction and the other "
-            "components is the model's, not the data's (distributed_friction: slip elements hold the mesh torque instead)")
+            f"reversal{where}), so after every reversal the model's mesh torque rises by up to "
+            f"{dahl_hook_rise_Nm(friction, params, peak_load_Nm):.3g} N·m and its twist runs back before the loop turns — "
+            "friction doing work, which no locked-input loop shows; where the data do not hook, the fit traded the "
+            "friction's shape for its level and their split from the other components is the model's, not the data's "
+            "(distributed_friction: slip elements hold the mesh torque instead)")
