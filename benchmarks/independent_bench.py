@@ -232,8 +232,7 @@ def write_campaign(folder: Path, reducer, name: str, seed: int, rate_Hz: float =
     folder.mkdir(parents=True, exist_ok=True)
     time_s, torque, test_nr = torque_program(rate_Hz)
     twist = simulate_twist(reducer, torque)
-    angle, torque_read = (measure(twist, torque, seed) if noisy
-                          else (measure(twist, torque, seed, 0.0, 1e-12, 0.0)))
+    angle, torque_read = measure(twist, torque, seed) if noisy else measure(twist, torque, seed, 0.0, 1e-12, 0.0)
     with open(folder / f"{name}.csv", "w") as f:
         f.write("TIME,POSITION,TORQUE,test_nr\n")
         for row in zip(time_s, angle / (2.0 * math.pi), torque_read, test_nr):

@@ -16,26 +16,36 @@ import numpy as np
 from ..model import DahlFriction
 
 
+def _dahl_terms(friction, params: dict, peak_load_Nm: float):
+    """(level at the largest load T_f + μ·peak, μ, τ_d) of a Dahl element (N·m, 1, N·m); None
+    for a friction model without one."""
+    if not isinstance(friction, DahlFriction):
+        return None
+    mu = float(params.get("friction_load_coefficient", 0.0)) if friction.load_dependent else 0.0
+    level = float(friction.sliding_level({**params, "friction_load_coefficient": mu}, peak_load_Nm))
+    return level, mu, float(params["dahl_torque"])
+
+
 def dahl_hook_ratio(friction, params: dict, peak_load_Nm: float) -> float:
     """``2·(T_f + μ·peak)/τ_d + μ``: the friction torque's change per applied torque change just
     after a reversal at the largest load (above 1 the mesh torque runs backwards); NaN for a
     friction model without a Dahl element."""
-    if not isinstance(friction, DahlFriction):
+    terms = _dahl_terms(friction, params, peak_load_Nm)
+    if terms is None:
         return float("nan")
-    mu = float(params.get("friction_load_coefficient", 0.0)) if friction.load_dependent else 0.0
-    level = float(params["friction_torque"]) + mu * float(peak_load_Nm)
-    return 2.0 * level / float(params["dahl_torque"]) + mu
+    level, mu, tau_d = terms
+    return 2.0 * level / tau_d + mu
 
 
 def dahl_hook_rise_Nm(friction, params: dict, peak_load_Nm: float) -> float:
     """How far the mesh torque rises after a reversal before it turns (N·m): with
     ``r = 2·level/τ_d`` the rise ``−x + 2·level·(1 − e^(−x/τ_d))`` peaks at ``τ_d·(r − 1 − ln r)``
     (the level's own growth with the load left out); 0 when the element does not hook."""
-    if not isinstance(friction, DahlFriction):
+    terms = _dahl_terms(friction, params, peak_load_Nm)
+    if terms is None:
         return 0.0
-    mu = float(params.get("friction_load_coefficient", 0.0)) if friction.load_dependent else 0.0
-    tau_d = float(params["dahl_torque"])
-    r = 2.0 * (float(params["friction_torque"]) + mu * float(peak_load_Nm)) / tau_d
+    level, _, tau_d = terms
+    r = 2.0 * level / tau_d
     return tau_d * (r - 1.0 - np.log(r)) if r > 1.0 else 0.0
 
 
@@ -44,8 +54,7 @@ def dahl_hook_note(friction, params: dict, peak_load_Nm: float) -> str:
     ratio = dahl_hook_ratio(friction, params, peak_load_Nm)
     if not np.isfinite(ratio) or ratio <= 1.0:
         return ""
-    mu = float(params.get("friction_load_coefficient", 0.0)) if friction.load_dependent else 0.0
-    where = f" at {peak_load_Nm:.3g} N·m" if mu > 0 else ""
+    where = f" at {peak_load_Nm:.3g} N·m" if _dahl_terms(friction, params, peak_load_Nm)[1] > 0 else ""
     return (f"the Dahl friction hooks: its saturation torque τ_d = {float(params['dahl_torque']):.3g} N·m is below what "
             f"its level needs ({ratio:.2f} × the applied torque's change turns into friction just after a "
             f"reversal{where}), so after every reversal the model's mesh torque rises by up to "
