@@ -242,6 +242,20 @@ def write_campaign(folder: Path, reducer, name: str, seed: int, rate_Hz: float =
     return path
 
 
+def noise_floors_rad(reducer, seed: int, rate_Hz: float = 50.0) -> tuple[float, float]:
+    """(the RMS of the angle's measurement noise in the record ``write_campaign`` writes — noise
+    and quantisation; the RMS of what the simulator itself leaves on that record when driven by
+    the record's torque, noise included, as any model fed the read torque is), both rad. The second
+    is the residual of a perfect model: the torque noise carried through a steep gap crossing and
+    through the friction's memory, besides the angle noise."""
+    _, torque, _ = torque_program(rate_Hz)
+    twist = simulate_twist(reducer, torque)
+    angle, torque_read = measure(twist, torque, seed)
+    noise = angle - twist
+    perfect = angle - simulate_twist(reducer, torque_read)
+    return float(np.std(noise)), float(np.std(perfect))
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-o", "--output", type=Path, required=True)

@@ -73,13 +73,15 @@ def run_case(name: str, noise_label: str, out: Path, seed: int) -> str:
         label = f"{name}-{noise_label.split()[0]}"
         shutil.copy(figures[-1], out / "figures" / f"{label}.png")
     metrics = doc["final_metrics"]["metrics"]
+    angle_noise, perfect = bench.noise_floors_rad(reducer, seed)
     steps = ", ".join(f"{s['effect']} ({s['rmse_before']:.0f} → {s['rmse_after']:.0f}″)" for s in doc["steps"]) or "nothing"
     off = doc["final_metrics"].get("metrics_off_data_note") or ""
     flagged = ", ".join(m for m in ("play", "stiffness_loading") if f"{m} " in off) or "none"
     jax.clear_caches()
     unexplained = "yes" if doc["unexplained"] else "no"
     return (f"| {name} | {noise_label} | {steps} | {doc['rmse_base']:.0f} → {doc['rmse_final']:.0f} | "
-            f"{doc['noise_estimate']:.0f} | {unexplained} | {reducer.gap_rad * ARCMIN_PER_RAD:.1f} | {_interval(metrics['geometric_gap'])} | "
+            f"{doc['noise_estimate']:.0f} | {angle_noise * ARCMIN_PER_RAD * 60.0:.0f} | "
+            f"{perfect * ARCMIN_PER_RAD * 60.0:.0f} | {unexplained} | {reducer.gap_rad * ARCMIN_PER_RAD:.1f} | {_interval(metrics['geometric_gap'])} | "
             f"{_friction_truth(reducer)} | {_interval(metrics['friction_torque'])} | "
             f"{exact['stiffness_loading']['value']:.4f} / {data['stiffness_loading']['value']:.4f} | "
             f"{_interval(metrics['stiffness_loading'])} | {flagged} | {seconds:.0f} | [figure](figures/{label}.png) |")
@@ -105,18 +107,25 @@ def main(argv=None) -> int:
         "NumPy, no torsionfit model code), laid out like the measured cycloidal files (five ±4 N·m play ramps, three "
         f"±40 N·m stiffness ramps, 50 Hz), seed {args.seed}: `.venv/bin/python scripts/independent_bench_report.py -o <folder>`. "
         f"Angle noise 0.3 encoder steps plus the 19.8″ encoder's quantisation ({noise_arcsec:.0f}″ together), torque "
-        "noise 0.05 N·m (about 13″ of twist along the loop's slope). Truth beside each reading: the gap β (arcmin), the "
+        f"noise 0.05 N·m ({0.05 / bench.TorqueSideReducer().stiffness_Nm_per_rad * ARCMIN_PER_RAD * 60.0:.0f}″ of twist "
+        "along the torque-side spring's slope at no load). Truth beside each reading: the gap β (arcmin), the "
         "friction (N·m: the elements' summed levels at no load – at 40 N·m; a Dahl element of the torque-side reducer "
         "reaches its level only after a torque travel of several times its saturation torque, so the level a loop shows "
         "is lower; the model's `friction_torque` is its sliding level at no load) and `stiffness_loading` (N·m/arcmin) "
         "read by its definition off the noiseless twist / off the noisy record; the model's values are the final fit's "
         "mean and 95 % HDI (Laplace); *off the data*: the fit's own check that its class metrics miss the data's "
-        "reading of the same record (`torsionfit fit` writes it to fit.json).",
+        "reading of the same record (`torsionfit fit` writes it to fit.json). *Angle noise*: the RMS of the record's "
+        "angle against the simulator's twist (the noise and the quantisation); *simulator on the read torque*: the RMS "
+        "of what the simulator itself leaves on the record when driven by the record's torque, noise included, as any "
+        "model fed the read torque is — the torque noise carried through the steep gap crossings (most of it, in "
+        "spikes) and through the friction's memory; a perfect model's RMSE, which a fit can undercut by "
+        "softening its crossing; *noise estimate*: the diagnosis's own (see statistics.md).",
         "",
-        "| reducer | noise | added (RMSE before → after) | RMSE base → final (″) | noise estimate (″) | unexplained | gap truth | "
+        "| reducer | noise | added (RMSE before → after) | RMSE base → final (″) | noise estimate (″) | angle noise (″) | "
+        "simulator on the read torque (″) | unexplained | gap truth | "
         "gap model | friction truth | friction model | stiffness_loading truth / data | stiffness_loading model | "
         "off the data | wall (s) | last step |",
-        "| --- | --- | --- | ---: | ---: | --- | ---: | --- | --- | --- | --- | --- | --- | ---: | --- |",
+        "| --- | --- | --- | ---: | ---: | ---: | ---: | --- | ---: | --- | --- | --- | --- | --- | --- | ---: | --- |",
         *rows, ""])
     (args.output / "independent-bench.md").write_text(text)
     print(f"wrote {args.output / 'independent-bench.md'}", file=sys.stderr)

@@ -183,9 +183,45 @@ def test_noise_estimate_is_the_residuals_not_the_torque_noise_model():
     residual = np.random.default_rng(0).normal(0.0, 3.0 * arcsec, n)
     run = SimpleNamespace(scale=np.sqrt(eiv + (2.0 * arcsec) ** 2), rho=0.6, eiv_var=eiv, residual=residual)
     assert noise_rmse_arcsec(SimpleNamespace(runs=[run])) == pytest.approx(2.0 / np.sqrt(1 - 0.36), rel=1e-9)
-    # a residual of steps: the AR(1) extrapolation overshoots; the estimate stops at the residual
-    steps = SimpleNamespace(scale=np.full(n, 2.0 * arcsec), rho=0.95, eiv_var=np.zeros(n), residual=residual)
+    # strongly correlated noise: the marginal overshoots the residual; the estimate stops at it
+    steps = SimpleNamespace(scale=np.full(n, 2.0 * arcsec), rho=0.9, eiv_var=np.zeros(n), residual=residual)
     assert noise_rmse_arcsec(SimpleNamespace(runs=[steps])) == pytest.approx(np.sqrt(np.mean(residual**2)) / arcsec, rel=1e-9)
+
+
+def test_noise_with_its_ar1_coefficient_at_the_bound_is_read_from_one_sample_increments():
+    """White noise plus a misfit that changes within a few samples (a gap crossing's, as on the
+    independent simulator's loops): the variogram rises from lag 1 to lag 2 faster than AR(1)
+    noise allows, ρ stops at its bound, and σ/√(1 − ρ²) would call the whole residual noise (the
+    cap). The estimate is the white noise one-sample increments allow, γ(1), a bound from below
+    for the noise and above for the white part here; a note names the run. Below the bound
+    nothing changes and no note is written."""
+    from types import SimpleNamespace
+
+    from torsionfit.diagnose._context import RHO_BOUND, variogram_noise
+    from torsionfit.diagnose._loop import NOISE_AT_BOUND, noise_bound_note, noise_rmse_arcsec
+    from torsionfit.units import ANGLE_UNITS
+
+    arcsec = ANGLE_UNITS["arcsec"]
+    rng = np.random.default_rng(3)
+    n, white = 4000, 8.0 * arcsec
+    t = np.arange(n)
+    # bursts of a misfit that turns within ~3 samples, every 200 samples, and a slow swell
+    misfit = 150.0 * arcsec * np.sin(2 * np.pi * t / 6.0) * (t % 200 < 12) + 60.0 * arcsec * np.sin(2 * np.pi * t / 400.0)
+    residual = misfit + rng.normal(0.0, white, n)
+    sd, rho = variogram_noise(residual)
+    assert rho == RHO_BOUND
+    run = SimpleNamespace(name="burst", scale=np.full(n, sd), rho=rho, eiv_var=np.zeros(n), residual=residual)
+    noise = noise_rmse_arcsec(SimpleNamespace(runs=[run]))
+    rms = np.sqrt(np.mean(residual**2)) / arcsec
+    assert noise == pytest.approx(np.sqrt(0.5 * np.mean(np.diff(residual) ** 2)) / arcsec, rel=1e-9)
+    assert white / arcsec < noise < 0.5 * rms
+    assert noise_bound_note([run]).startswith(f"{NOISE_AT_BOUND} in burst")
+    # the same noise alone: ρ below the bound, the marginal as before, no note
+    plain_sd, plain_rho = variogram_noise(rng.normal(0.0, white, n))
+    plain = SimpleNamespace(name="plain", scale=np.full(n, plain_sd), rho=plain_rho, eiv_var=np.zeros(n),
+                            residual=rng.normal(0.0, white, n))
+    assert plain_rho < RHO_BOUND and noise_bound_note([plain]) is None
+    assert noise_rmse_arcsec(SimpleNamespace(runs=[plain])) == pytest.approx(white / arcsec, rel=0.05)
 
 
 def test_a_residual_that_moves_in_jumps_gets_a_note_and_noise_does_not():

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from torsionfit.diagnose import DiagnoseOptions, diagnose
+from torsionfit.diagnose._loop import NOISE_AT_BOUND
 from torsionfit.fit import NoiseOptions
 from torsionfit.io import load_campaign
 from torsionfit.metrics import campaign_metrics
@@ -138,3 +139,20 @@ def test_no_kept_step_leaves_the_residual_larger(tmp_path):
     for step in result.steps:
         assert step.after.rmse_arcsec <= (1.0 + options.max_rmse_rise) * step.before.rmse_arcsec, step.effect
     assert {s.effect for s in result.steps} & LOAD_DEPENDENT
+
+
+@pytest.mark.parametrize("max_effects", [0, pytest.param(3, marks=ZOO)], ids=["base-fit", "trail"])
+def test_a_leftover_that_turns_within_samples_is_not_read_as_noise(tmp_path, max_effects):
+    """At 50 Hz the misfit around the load-dependent loop's gap crossings turns within a few
+    samples: the residual's variogram rises from lag 1 to lag 2 faster than AR(1) noise allows
+    (ρ at its bound), and σ/√(1 − ρ²) read the whole residual as noise — the trail (iid) ended
+    at 59″ with a hardening spring visibly left and "nothing left". The noise is read from
+    one-sample increments there: within twice the record's angle noise, a note says so, and
+    what the model leaves is a finding. The base fit alone in the suite, the trail zoo-only."""
+    reducer = bench.TorqueSideReducer()
+    options = DiagnoseOptions(noise=NoiseOptions(ar1=False), max_effects=max_effects)
+    result = diagnose(_campaign(tmp_path, reducer, "loaded", rate_Hz=50.0), options, seed=0)
+    angle_noise_arcsec = bench.noise_floors_rad(reducer, 0, rate_Hz=50.0)[0] / math.radians(1.0 / 3600.0)
+    assert angle_noise_arcsec < result.noise_arcsec < 2.0 * angle_noise_arcsec
+    assert any(n.startswith(NOISE_AT_BOUND) for n in result.notes)
+    assert result.unexplained and result.final.rmse_arcsec > 3.0 * result.noise_arcsec

@@ -15,6 +15,11 @@ from ..fit import FitProblem, MapResult
 from ..io import Campaign
 
 
+#: the largest AR(1) coefficient read off a variogram: a residual whose semivariance rises faster
+#: from lag 1 to lag 2 than this allows is not AR(1) noise there, and ρ stops at the bound
+RHO_BOUND = 0.95
+
+
 @dataclass(frozen=True, eq=False)
 class RunView:
     """One run as a signature sees it (SI units; arrays of the run's length)."""
@@ -62,6 +67,21 @@ class RunView:
         (``robust_variogram_noise``, floored by the encoder, the errors in variables kept)."""
         sd, rho = robust_variogram_noise(residual)
         return replace(self, robust_scale=np.sqrt(self.eiv_var + max(sd, self.floor) ** 2), robust_rho=rho)
+
+    def white_at_bound(self) -> "RunView":
+        """This view with each noise reading whose ρ sits at ``RHO_BOUND`` read as white from
+        one-sample increments instead: ρ = 0 and the sd of γ(1) = σ²/(1 + ρ), floored by the
+        encoder, the errors in variables kept. At the bound the short-lag variogram is not AR(1)
+        noise, and whitening with ρ = 0.95 would difference away the smooth structure a test of
+        what the model leaves looks for."""
+        out = self
+        if self.rho >= RHO_BOUND:
+            sd = np.sqrt(np.maximum(self.scale**2 - self.eiv_var, 0.0) / (1.0 + self.rho))
+            out = replace(out, scale=np.sqrt(self.eiv_var + np.maximum(sd, self.floor) ** 2), rho=0.0)
+        if self.robust and self.robust_rho >= RHO_BOUND:
+            sd = np.sqrt(np.maximum(self.robust_scale**2 - self.eiv_var, 0.0) / (1.0 + self.robust_rho))
+            out = replace(out, robust_scale=np.sqrt(self.eiv_var + np.maximum(sd, self.floor) ** 2), robust_rho=0.0)
+        return out
 
     def whiten(self, x: np.ndarray, robust: bool = False) -> np.ndarray:
         """The AR(1) whitening with per-sample scales, on a vector or the columns of a matrix;
@@ -162,7 +182,7 @@ def _ar1_noise(g1: float, g2: float) -> tuple[float, float]:
     """(innovation sd, ρ) of AR(1) noise with semivariances γ(1) = ``g1`` and γ(2) = ``g2``."""
     if not g1 > 0:  # a constant residual, or below the encoder step: the caller's floor decides
         return 1e-12, 0.0
-    rho = float(np.clip(g2 / g1 - 1.0, 0.0, 0.95))
+    rho = float(np.clip(g2 / g1 - 1.0, 0.0, RHO_BOUND))
     return float(np.sqrt(g1 / (1.0 - rho) * (1.0 - rho**2))) or 1e-12, rho
 
 

@@ -22,7 +22,7 @@ from ..io import Campaign
 from ..model import model_with_effects
 from ..units import ANGLE_UNITS
 from ._catalog import CATALOG, Effect
-from ._context import FitContext, fit_context, jump_reading, moves_in_jumps
+from ._context import RHO_BOUND, FitContext, fit_context, jump_reading, moves_in_jumps
 from ._selection import Comparison, Score, compare, score
 from ._signature import HUBER_SDS, Evidence, least_squares_log10_p, regression_evidence
 
@@ -212,10 +212,12 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
         effects = dict(current.effects)
         added.add(accepted.effect)
     noise = noise_rmse_arcsec(current.context)
-    findings, notes = judge_leftovers(_leftovers(current.context, options, added), current.rmse_arcsec, noise, options)
-    jumps = jump_note(current.context.runs)
-    if jumps:
-        notes.append(jumps)
+    # what the final model leaves is tested against the noise the estimate reads (white where ρ sits at its bound)
+    final, white = current.context, tuple(r.white_at_bound() for r in current.context.runs)
+    if any(w is not r for w, r in zip(white, final.runs)):
+        final = replace(final, runs=white)
+    findings, notes = judge_leftovers(_leftovers(final, options, added), current.rmse_arcsec, noise, options)
+    notes += [n for n in (noise_bound_note(current.context.runs), jump_note(current.context.runs)) if n]
     description = "; ".join(ev.description for ev in findings)
     return Diagnosis(base=base, final=current, steps=steps, rejected=rejected, signatures=history,
                      unexplained=bool(findings), unexplained_description=description, leftovers=findings,
@@ -305,25 +307,54 @@ def jump_note(runs) -> str | None:
                    "effect models them")
 
 
+def _noise_reading(run) -> tuple[float, float]:
+    """(innovation sd without the errors in variables, ρ) a run's noise estimate uses: the robust
+    view's where its residual moves in jumps (median increments, which the jumps do not inflate)."""
+    scale, rho = (run.robust_scale, run.robust_rho) if getattr(run, "robust", False) else (run.scale, run.rho)
+    return np.sqrt(np.maximum(scale**2 - run.eiv_var, 0.0)), float(rho)
+
+
 def noise_rmse_arcsec(ctx: FitContext) -> float:
     """RMS of the measurement noise over all samples (arcsec): per run the innovation sd from the
     residual's short-lag variogram, floored by the encoder, as a marginal sd σ/√(1 − ρ²).
+
+    Where ρ sits at its bound (``RHO_BOUND``) the variogram rises from lag 1 to lag 2 faster than
+    AR(1) noise can: the bound is an assumption there, not a reading, and σ/√(1 − ρ²) would
+    extrapolate it to the whole residual (on an independent simulator's loop, whose gap
+    crossings' misfit changes within a few samples, a residual with a spring visibly left in it
+    was called noise). The noise is then read as white from one-sample increments, γ(1) = σ²/(1 + ρ):
+    the most white noise those increments allow, a bound from below for the noise, so that what
+    rises over longer lags counts as structure (:func:`noise_bound_note` says so).
 
     The fit's errors-in-variables variance (the torque noise carried along the loop's branch) is
     left out: the torque noise's effect on the angle is already in the residual the variogram
     reads, and near a steep gap crossing that variance can put the "noise" above the residual
     itself — which turned real findings into notes. For the same reason each
-    run's estimate is capped at its residual's mean square: the AR(1) extrapolation from the
-    first two lags overshoots on a residual made of steps (stick-slip), and the noise is a part
-    of the residual, never more."""
+    run's estimate is capped at its residual's mean square: the noise is a part of the residual,
+    never more."""
     var = []
     for r in ctx.runs:
-        # a robust view's noise is the one read from median increments, which the jumps do not inflate
-        scale, rho = (r.robust_scale, r.robust_rho) if getattr(r, "robust", False) else (r.scale, r.rho)
-        v = np.maximum(scale**2 - r.eiv_var, 0.0) / (1.0 - rho**2)
+        sd, rho = _noise_reading(r)
+        v = sd**2 / (1.0 + rho) if rho >= RHO_BOUND else sd**2 / (1.0 - rho**2)
         cap = float(np.mean(np.asarray(r.residual, float) ** 2))
         var.append(v * min(1.0, cap / float(np.mean(v))) if np.mean(v) > 0 else v)
     return float(np.sqrt(np.mean(np.concatenate(var)))) / ARCSEC
+
+
+#: how the note on a noise read from one-sample increments begins
+NOISE_AT_BOUND = "the noise is read from one-sample increments"
+
+
+def noise_bound_note(runs) -> str | None:
+    """A note naming the runs whose noise :func:`noise_rmse_arcsec` reads as white from
+    one-sample increments (their variogram's ρ at ``RHO_BOUND``); None when there are none."""
+    names = [r.name for r in runs if _noise_reading(r)[1] >= RHO_BOUND]
+    if not names:
+        return None
+    return (f"{NOISE_AT_BOUND} in {', '.join(names)}: the residual's semivariance rises from lag 1 to lag 2 "
+            f"faster than AR(1) noise allows (ρ at its bound {RHO_BOUND:g}; structure changing within a few "
+            f"samples, such as a gap crossing's misfit, does so), so the noise estimate is the white noise those "
+            f"increments allow — a bound from below — and what rises over longer lags counts as structure")
 
 
 def _periodic_search(ctx: FitContext, runs, variable, label: str, unit_scale: float, unit: str, alpha: float):
