@@ -224,15 +224,22 @@ angle = "rev"
 """
 
 
+def record(reducer, seed: int, rate_Hz: float = 50.0, noisy: bool = True):
+    """(time_s, applied torque, test_nr, twist_rad, angle_rad read, torque_Nm read) of one
+    simulated and measured record; ``noisy=False``: the noiseless twist, unquantised."""
+    time_s, torque, test_nr = torque_program(rate_Hz)
+    twist = simulate_twist(reducer, torque)
+    angle, torque_read = measure(twist, torque, seed) if noisy else measure(twist, torque, seed, 0.0, 1e-12, 0.0)
+    return time_s, torque, test_nr, twist, angle, torque_read
+
+
 def write_campaign(folder: Path, reducer, name: str, seed: int, rate_Hz: float = 50.0,
                    noisy: bool = True) -> Path:
     """Simulate, measure and write ``folder/<name>.csv`` and ``folder/campaign.toml``; returns the
     manifest's path. ``noisy=False``: the noiseless twist, unquantised (the truth a metric's
     definition gives), the manifest's encoder step as with noise."""
     folder.mkdir(parents=True, exist_ok=True)
-    time_s, torque, test_nr = torque_program(rate_Hz)
-    twist = simulate_twist(reducer, torque)
-    angle, torque_read = measure(twist, torque, seed) if noisy else measure(twist, torque, seed, 0.0, 1e-12, 0.0)
+    time_s, _, test_nr, _, angle, torque_read = record(reducer, seed, rate_Hz, noisy)
     with open(folder / f"{name}.csv", "w") as f:
         f.write("TIME,POSITION,TORQUE,test_nr\n")
         for row in zip(time_s, angle / (2.0 * math.pi), torque_read, test_nr):
@@ -248,9 +255,7 @@ def noise_floors_rad(reducer, seed: int, rate_Hz: float = 50.0) -> tuple[float, 
     the record's torque, noise included, as any model fed the read torque is), both rad. The second
     is the residual of a perfect model: the torque noise carried through a steep gap crossing and
     through the friction's memory, besides the angle noise."""
-    _, torque, _ = torque_program(rate_Hz)
-    twist = simulate_twist(reducer, torque)
-    angle, torque_read = measure(twist, torque, seed)
+    _, _, _, twist, angle, torque_read = record(reducer, seed, rate_Hz)
     noise = angle - twist
     perfect = angle - simulate_twist(reducer, torque_read)
     return float(np.std(noise)), float(np.std(perfect))

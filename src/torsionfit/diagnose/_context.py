@@ -74,13 +74,15 @@ class RunView:
         encoder, the errors in variables kept. At the bound the short-lag variogram is not AR(1)
         noise, and whitening with ρ = 0.95 would difference away the smooth structure a test of
         what the model leaves looks for."""
+        def white(scale, rho):
+            sd = np.sqrt(np.maximum(scale**2 - self.eiv_var, 0.0) / (1.0 + rho))
+            return np.sqrt(self.eiv_var + np.maximum(sd, self.floor) ** 2)
+
         out = self
         if self.rho >= RHO_BOUND:
-            sd = np.sqrt(np.maximum(self.scale**2 - self.eiv_var, 0.0) / (1.0 + self.rho))
-            out = replace(out, scale=np.sqrt(self.eiv_var + np.maximum(sd, self.floor) ** 2), rho=0.0)
+            out = replace(out, scale=white(self.scale, self.rho), rho=0.0)
         if self.robust and self.robust_rho >= RHO_BOUND:
-            sd = np.sqrt(np.maximum(self.robust_scale**2 - self.eiv_var, 0.0) / (1.0 + self.robust_rho))
-            out = replace(out, robust_scale=np.sqrt(self.eiv_var + np.maximum(sd, self.floor) ** 2), robust_rho=0.0)
+            out = replace(out, robust_scale=white(self.robust_scale, self.robust_rho), robust_rho=0.0)
         return out
 
     def whiten(self, x: np.ndarray, robust: bool = False) -> np.ndarray:

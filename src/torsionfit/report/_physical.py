@@ -26,15 +26,21 @@ def _dahl_terms(friction, params: dict, peak_load_Nm: float):
     return level, mu, float(params["dahl_torque"])
 
 
+def _ratio(level: float, mu: float, tau_d: float) -> float:
+    return 2.0 * level / tau_d + mu
+
+
+def _rise_Nm(level: float, tau_d: float) -> float:
+    r = 2.0 * level / tau_d
+    return tau_d * (r - 1.0 - np.log(r)) if r > 1.0 else 0.0
+
+
 def dahl_hook_ratio(friction, params: dict, peak_load_Nm: float) -> float:
     """``2·(T_f + μ·peak)/τ_d + μ``: the friction torque's change per applied torque change just
     after a reversal at the largest load (above 1 the mesh torque runs backwards); NaN for a
     friction model without a Dahl element."""
     terms = _dahl_terms(friction, params, peak_load_Nm)
-    if terms is None:
-        return float("nan")
-    level, mu, tau_d = terms
-    return 2.0 * level / tau_d + mu
+    return float("nan") if terms is None else _ratio(*terms)
 
 
 def dahl_hook_rise_Nm(friction, params: dict, peak_load_Nm: float) -> float:
@@ -42,23 +48,23 @@ def dahl_hook_rise_Nm(friction, params: dict, peak_load_Nm: float) -> float:
     ``r = 2·level/τ_d`` the rise ``−x + 2·level·(1 − e^(−x/τ_d))`` peaks at ``τ_d·(r − 1 − ln r)``
     (the level's own growth with the load left out); 0 when the element does not hook."""
     terms = _dahl_terms(friction, params, peak_load_Nm)
-    if terms is None:
-        return 0.0
-    level, _, tau_d = terms
-    r = 2.0 * level / tau_d
-    return tau_d * (r - 1.0 - np.log(r)) if r > 1.0 else 0.0
+    return 0.0 if terms is None else _rise_Nm(terms[0], terms[2])
 
 
 def dahl_hook_note(friction, params: dict, peak_load_Nm: float) -> str:
     """One line when the fitted Dahl element hooks (:func:`dahl_hook_ratio` > 1), else ""."""
-    ratio = dahl_hook_ratio(friction, params, peak_load_Nm)
+    terms = _dahl_terms(friction, params, peak_load_Nm)
+    if terms is None:
+        return ""
+    level, mu, tau_d = terms
+    ratio = _ratio(level, mu, tau_d)
     if not np.isfinite(ratio) or ratio <= 1.0:
         return ""
-    where = f" at {peak_load_Nm:.3g} N·m" if _dahl_terms(friction, params, peak_load_Nm)[1] > 0 else ""
-    return (f"the Dahl friction hooks: its saturation torque τ_d = {float(params['dahl_torque']):.3g} N·m is below what "
+    where = f" at {peak_load_Nm:.3g} N·m" if mu > 0 else ""
+    return (f"the Dahl friction hooks: its saturation torque τ_d = {tau_d:.3g} N·m is below what "
             f"its level needs ({ratio:.2f} × the applied torque's change turns into friction just after a "
             f"reversal{where}), so after every reversal the model's mesh torque rises by up to "
-            f"{dahl_hook_rise_Nm(friction, params, peak_load_Nm):.3g} N·m and its twist runs back before the loop turns — "
+            f"{_rise_Nm(level, tau_d):.3g} N·m and its twist runs back before the loop turns — "
             "friction doing work, which no locked-input loop shows; where the data do not hook, the fit traded the "
             "friction's shape for its level and their split from the other components is the model's, not the data's "
             "(distributed_friction: slip elements hold the mesh torque instead)")
