@@ -156,3 +156,30 @@ def test_a_leftover_that_turns_within_samples_is_not_read_as_noise(tmp_path, max
     assert angle_noise_arcsec < result.noise_arcsec < 2.0 * angle_noise_arcsec
     assert any(n.startswith(NOISE_AT_BOUND) for n in result.notes)
     assert result.unexplained and result.final.rmse_arcsec > 3.0 * result.noise_arcsec
+
+
+def test_the_final_models_intervals_are_widened_for_what_it_leaves(tmp_path):
+    """The twist-side loop (friction on the twist, outside torsionfit's physics; iid noise): the
+    base model leaves structure over whole ramps (long-run variance ratio k ≫ 1). The final
+    model's metrics are widened by k as ``torsionfit fit`` widens them and hold the simulator's
+    loading stiffness and gap; the plain Laplace interval of the loading stiffness missed it."""
+    from torsionfit.diagnose._report import final_metrics
+    from torsionfit.fit._misfit import misfit_inflation
+
+    reducer = bench.TwistSideReducer()
+    campaign = _campaign(tmp_path, reducer, "twist", rate_Hz=50.0)
+    result = diagnose(campaign, DiagnoseOptions(noise=NoiseOptions(ar1=False), max_effects=0), seed=0)
+    doc = final_metrics(result, seed=0)
+    fit = result.final.map_result
+    assert doc["misfit_inflation"] == pytest.approx(misfit_inflation(fit.problem, fit.u)) and doc["misfit_inflation"] > 10.0
+    truth = campaign_metrics(_campaign(tmp_path, reducer, "exact", noisy=False, rate_Hz=50.0))["runs"][0]["metrics"]
+    lo, hi = doc["metrics"]["stiffness_loading"]["hdi95"]
+    assert lo < truth["stiffness_loading"]["value"] < hi, (lo, hi, truth["stiffness_loading"]["value"])
+    lo, hi = doc["metrics"]["geometric_gap"]["hdi95"]
+    assert lo < reducer.gap_rad / ARCMIN < hi, (lo, hi)
+    # the same model's Laplace interval of the loading stiffness under the plain likelihood misses it
+    from torsionfit.report._pipeline import FitOptions, finish_fit, fit_json
+
+    plain = fit_json(finish_fit(campaign, FitOptions(sampler="laplace"), fit.problem.model, fit.problem, fit, 0))["metrics"]
+    lo, hi = plain["stiffness_loading"]["hdi95"]
+    assert not lo < truth["stiffness_loading"]["value"] < hi, (lo, hi)
