@@ -183,3 +183,23 @@ def test_the_final_models_intervals_are_widened_for_what_it_leaves(tmp_path):
     plain = fit_json(finish_fit(campaign, FitOptions(sampler="laplace"), fit.problem.model, fit.problem, fit, 0))["metrics"]
     lo, hi = plain["stiffness_loading"]["hdi95"]
     assert not lo < truth["stiffness_loading"]["value"] < hi, (lo, hi)
+
+
+@ZOO
+def test_a_gap_split_with_a_soft_first_segment_is_named(tmp_path):
+    """At 12.5 Hz the load-dependent loop's gap crossing spans a few samples; the trail adds the
+    three-segment compliance, whose first segment takes most of the 60′ gap: ``geometric_gap``
+    alone reads a fraction of it. The final metrics name the split, with the sum of the two."""
+    from torsionfit.diagnose._report import final_metrics
+    from torsionfit.report._physical import soft_segment_lost_motion_rad
+
+    reducer = bench.TorqueSideReducer()
+    result = diagnose(_campaign(tmp_path, reducer, "loaded", rate_Hz=12.5), DiagnoseOptions(noise=NoiseOptions(ar1=False)),
+                      seed=0)
+    assert result.final.effects.get("stiffness_nonlinearity") == "three_segment", result.final.effects
+    values = result.final.map_result.values
+    assert values["gap"] < 0.5 * reducer.gap_rad
+    total = values["gap"] + soft_segment_lost_motion_rad(result.final.map_result.problem.model.compliance, values)
+    assert total == pytest.approx(reducer.gap_rad, rel=0.10)
+    note = final_metrics(result, seed=0).get("gap_segment_note", "")
+    assert "not geometric_gap alone" in note, note

@@ -1,12 +1,14 @@
 """report/_physical.py: a fitted Dahl element whose friction turns faster than the applied
-torque after a reversal (the twist runs back: a hook) is named, against the forward model."""
+torque after a reversal (the twist runs back: a hook) is named, against the forward model; so
+is a compliance whose soft first segment shares the gap's crossing."""
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from torsionfit.model import DahlFriction, MaxwellSlipFriction
-from torsionfit.report._physical import dahl_hook_note, dahl_hook_ratio, dahl_hook_rise_Nm
+from torsionfit.model import DahlFriction, LinearCompliance, MaxwellSlipFriction, ThreeSegmentCompliance
+from torsionfit.report._physical import (dahl_hook_note, dahl_hook_ratio, dahl_hook_rise_Nm, gap_segment_note,
+                                         soft_segment_lost_motion_rad)
 
 
 def _mesh_after_reversal(friction, params, peak_Nm=25.0, step_Nm=0.05):
@@ -52,3 +54,33 @@ def test_slip_elements_never_hook():
     assert np.isnan(dahl_hook_ratio(friction, params, 25.0))
     assert dahl_hook_note(friction, params, 25.0) == ""
     assert _mesh_after_reversal(friction, params) >= -1e-12  # stuck elements hold the mesh torque
+
+
+#: a final fit of the independent simulator's load-dependent loop at 12.5 Hz (SYNTHETIC, 60′ gap):
+#: 15′ of gap and a first segment 14× softer below 0.47 N·m
+GAP_IN_SEGMENT = {"k1": 67.36, "k2": 971.3, "k3": 1039.9, "t1": 0.4724, "t2_minus_t1": 15.6, "gap": 0.004366}
+ARCMIN = np.radians(1.0 / 60.0)
+
+
+@pytest.mark.parametrize("params", [GAP_IN_SEGMENT, {**GAP_IN_SEGMENT, "k1": 0.6 * GAP_IN_SEGMENT["k2"]}],
+                         ids=["soft", "catalog-like"])
+def test_the_first_segments_lost_motion_is_the_forward_models(params):
+    """2·T1·(1/K1 − 1/K2) is the twist across zero torque beyond the second segment's line:
+    θ(+T) − θ(−T) − 2T/K2 for T between the knees, off the compliance itself."""
+    compliance = ThreeSegmentCompliance()
+    t = 4.0  # N·m, well past T1's knee, below T2
+    theta = np.asarray(compliance(params, jnp.asarray([-t, t])))
+    beyond = theta[1] - theta[0] - 2 * t / params["k2"]
+    assert soft_segment_lost_motion_rad(compliance, params) == pytest.approx(beyond, rel=0.01)
+
+
+def test_a_gap_shared_with_a_soft_first_segment_is_named_with_their_sum():
+    compliance = ThreeSegmentCompliance()
+    note = gap_segment_note(compliance, GAP_IN_SEGMENT)
+    total = (GAP_IN_SEGMENT["gap"] + soft_segment_lost_motion_rad(compliance, GAP_IN_SEGMENT)) / ARCMIN
+    assert total == pytest.approx(60.0, rel=0.02)  # the simulator's gap
+    assert "14.4× softer" in note and f"{total:.3g}′" in note and "not geometric_gap alone" in note
+    # a catalog curve (K1 = 0.6 K2), a segment whose lost motion is small beside the gap, another compliance
+    assert gap_segment_note(compliance, {**GAP_IN_SEGMENT, "k1": 0.6 * GAP_IN_SEGMENT["k2"]}) == ""
+    assert gap_segment_note(compliance, {**GAP_IN_SEGMENT, "gap": 0.06}) == ""
+    assert gap_segment_note(LinearCompliance(), {"stiffness": 971.3, "gap": 0.004366}) == ""

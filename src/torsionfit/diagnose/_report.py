@@ -76,10 +76,13 @@ def summary_text(doc: dict) -> str:
             lines.append(f"  {name:34s} {e['mean']:11.5g}   [{lo:10.5g}, {hi:10.5g}]  {e['unit']}")
         if doc["final_metrics"].get("metrics_off_data_note"):
             lines.append(f"  off the data: {doc['final_metrics']['metrics_off_data_note']}")
-        if doc["final_metrics"].get("friction_hook_note"):
-            lines.append(f"  physics: {doc['final_metrics']['friction_hook_note']}")
+        for key in ("friction_hook_note", "gap_segment_note"):
+            if doc["final_metrics"].get(key):
+                lines.append(f"  physics: {doc['final_metrics'][key]}")
         if doc["final_metrics"].get("noise_note"):
             lines.append(f"  noise: {doc['final_metrics']['noise_note']}")
+        if doc["final_metrics"].get("laplace_note"):
+            lines.append(f"  laplace: {doc['final_metrics']['laplace_note']}")
     lines.append("unexplained: " + (doc["unexplained_description"] if doc["unexplained"] else _NOTHING_LEFT))
     lines += [f"note: {n}" for n in doc.get("notes", [])]
     return "\n".join(lines)
@@ -110,7 +113,8 @@ def final_metrics(d: Diagnosis, seed: int = 0) -> dict:
             "metrics": doc["metrics"], "parameters": doc["parameters"],
             # the metrics the data read directly whose reading the final model's interval misses
             "metrics_off_data": doc["diagnostics"]["metrics_off_data"],
-            **{key: doc["diagnostics"][key] for key in ("metrics_off_data_note", "friction_hook_note", "noise_note")
+            **{key: doc["diagnostics"][key] for key in ("metrics_off_data_note", "friction_hook_note", "gap_segment_note",
+                                                           "noise_note", "laplace_note")
                if key in doc["diagnostics"]}}
 
 

@@ -68,3 +68,44 @@ def dahl_hook_note(friction, params: dict, peak_load_Nm: float) -> str:
             "friction doing work, which no locked-input loop shows; where the data do not hook, the fit traded the "
             "friction's shape for its level and their split from the other components is the model's, not the data's "
             "(distributed_friction: slip elements hold the mesh torque instead)")
+
+
+#: a first compliance segment this many times softer than the second draws a steep crossing
+#: about zero torque, as a gap does (catalog three-segment curves of harmonic drives: K2/K1
+#: about 1.2–2; the virtual bench's: 1.4–2.1)
+SOFT_SEGMENT_RATIO = 2.5
+#: … and is named beside the gap when its lost motion is at least this share of the gap's
+SOFT_SEGMENT_SHARE = 0.25
+
+
+def soft_segment_lost_motion_rad(compliance, params: dict) -> float:
+    """``2·T1·(1/K1 − 1/K2)``: the twist a three-segment compliance's first segment adds across
+    zero torque beyond the second segment's line (rad); 0 for another compliance or a first
+    segment no softer than the second."""
+    from ..model import ThreeSegmentCompliance
+
+    if not isinstance(compliance, ThreeSegmentCompliance):
+        return 0.0
+    k1, k2, t1 = (float(params[k]) for k in ("k1", "k2", "t1"))
+    return max(2.0 * t1 * (1.0 / k1 - 1.0 / k2), 0.0)
+
+
+def gap_segment_note(compliance, params: dict) -> str:
+    """One line when the compliance's first segment is at least ``SOFT_SEGMENT_RATIO`` times
+    softer than the second and its lost motion at least ``SOFT_SEGMENT_SHARE`` of the gap's,
+    else "": the gap and that segment then share the crossing, and the gap alone is not the
+    model's gap-like lost motion (SYNTHETIC independent bench at 12.5 Hz: a 60′ gap read as 15′
+    of gap and a first segment 14× softer below 0.47 N·m adding 45′)."""
+    lost = soft_segment_lost_motion_rad(compliance, params)
+    if lost <= 0.0:
+        return ""
+    k1, k2, t1 = (float(params[k]) for k in ("k1", "k2", "t1"))
+    gap = float(params.get("gap", 0.0))
+    if k2 / k1 < SOFT_SEGMENT_RATIO or lost < SOFT_SEGMENT_SHARE * gap:
+        return ""
+    arcmin = np.degrees(1.0) * 60.0
+    return (f"the compliance's first segment is {k2 / k1:.3g}× softer than the second below T1 = {t1:.3g} N·m: it adds "
+            f"{lost * arcmin:.3g}′ of twist across zero torque beside a gap of {gap * arcmin:.3g}′ — both draw the steep "
+            f"crossing about zero torque, and on these data the model splits it between them; their sum, "
+            f"{(gap + lost) * arcmin:.3g}′, is its gap-like lost motion, not geometric_gap alone (play, backlash and "
+            "lost_motion read the whole loop)")

@@ -31,7 +31,7 @@ from ..model import SteppedBacklash, model_with_effects
 from ..units import ANGLE_UNITS
 from ._against_data import against_data, data_readings, off_data_note, unreadable_notes
 from ._derived import derived_metrics_for
-from ._physical import dahl_hook_note
+from ._physical import dahl_hook_note, gap_segment_note
 from ._follows import left_by_posterior_reason, not_followed_reason, runs_left_by_posterior, runs_not_followed
 
 ARCSEC = ANGLE_UNITS["arcsec"]
@@ -650,6 +650,9 @@ def fit_json(fit: CampaignFit, command: str | None = None) -> dict:
         hook = dahl_hook_note(problem.model.friction, {k: v["mean"] for k, v in physics.items()}, peak)
         if hook:
             diagnostics["friction_hook_note"] = hook
+    segment = gap_segment_note(problem.model.compliance, {k: v["mean"] for k, v in physics.items()})
+    if segment:
+        diagnostics["gap_segment_note"] = segment
     return {
         "campaign": str(fit.campaign.path) if fit.campaign.path else None,
         "label": fit.campaign.notes,
@@ -740,8 +743,9 @@ def summary_table(doc: dict) -> str:
         lines.append(f"laplace: {d['laplace_note']}")
     if d.get("metrics_off_data_note"):
         lines.append(f"off the data: {d['metrics_off_data_note']}")
-    if d.get("friction_hook_note"):
-        lines.append(f"physics: {d['friction_hook_note']}")
+    for key in ("friction_hook_note", "gap_segment_note"):
+        if d.get(key):
+            lines.append(f"physics: {d[key]}")
     for name, note in (d.get("metrics_not_computed") or {}).items():
         lines.append(f"not computed: {name}: {note}")
     lines.append("RMSE: " + ", ".join(f"{k} {v['value']:.3g}″" for k, v in doc["rmse"].items()))
