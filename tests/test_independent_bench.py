@@ -201,5 +201,9 @@ def test_a_gap_split_with_a_soft_first_segment_is_named(tmp_path):
     assert values["gap"] < 0.5 * reducer.gap_rad
     total = values["gap"] + soft_segment_lost_motion_rad(result.final.map_result.problem.model.compliance, values)
     assert total == pytest.approx(reducer.gap_rad, rel=0.10)
-    note = final_metrics(result, seed=0).get("gap_segment_note", "")
-    assert "not geometric_gap alone" in note, note
+    doc = final_metrics(result, seed=0)
+    note = doc.get("gap_segment_note", "")
+    assert "not geometric_gap alone" in note and "95 % HDI" in note, note
+    both = doc["metrics"]["gap_with_first_segment"]
+    print("gap_with_first_segment", both["mean"], both["hdi95"])
+    assert both["mean"] == pytest.approx(reducer.gap_rad / ARCMIN, rel=0.10)

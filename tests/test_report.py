@@ -351,3 +351,22 @@ def test_a_fit_with_an_odd_stepped_gap_starts_from_the_plain_gap():
     tau = jnp.linspace(-rated, rated, 401)
     stepped, plain = np.asarray(model.backlash(values, tau)), np.asarray(SmoothBacklash()(values, tau))
     assert np.max(np.abs(stepped - plain)) <= 0.07 * float(values["gap"])
+
+
+def test_the_gap_with_a_soft_first_segment_is_a_metric_of_three_segment_models(noisy_bench):
+    """``gap_with_first_segment`` = β + 2·T1·(1/K1 − 1/K2) (floored at 0) for a three-segment
+    compliance, and no metric for a linear one (whose gap alone is its gap-like lost motion)."""
+    from torsionfit.report._pipeline import _values_over_draws, prepare_fit
+
+    sim = simulate(load_bench(noisy_bench), seed=4)
+    assert "gap_with_first_segment" not in {s.name for s in derived_metrics_for(sim.campaign, sim.model).specs}
+    campaign, model, problem = prepare_fit(sim.campaign, FitOptions(sampler="laplace",
+                                                                    effects={"stiffness_nonlinearity": "three_segment"}))
+    derived = derived_metrics_for(campaign, model)
+    names = [s.name for s in derived.specs]
+    values = {k: float(np.asarray(v)[0]) for k, v in _values_over_draws(problem, np.asarray(problem.prior_mean)[None], False).items()}
+    arcmin = np.radians(1.0 / 60.0)
+    for k1, expected in ((values["k2"] / 14.0, 2.0 * values["t1"] * (14.0 - 1.0) / values["k2"]), (2.0 * values["k2"], 0.0)):
+        out = dict(zip(names, np.asarray(derived.evaluate({**values, "k1": k1}))))
+        assert out["gap_with_first_segment"] == pytest.approx((values["gap"] + expected) / arcmin, rel=1e-9)
+        assert out["geometric_gap"] == pytest.approx(values["gap"] / arcmin, rel=1e-9)

@@ -80,6 +80,7 @@ def test_a_gap_shared_with_a_soft_first_segment_is_named_with_their_sum():
     total = (GAP_IN_SEGMENT["gap"] + soft_segment_lost_motion_rad(compliance, GAP_IN_SEGMENT)) / ARCMIN
     assert total == pytest.approx(60.0, rel=0.02)  # the simulator's gap
     assert "14.4× softer" in note and f"{total:.3g}′" in note and "not geometric_gap alone" in note
+    assert "95 % HDI 55–65′" in gap_segment_note(compliance, GAP_IN_SEGMENT, (55.0, 65.0))
     # a catalog curve (K1 = 0.6 K2), a segment whose lost motion is small beside the gap, another compliance
     assert gap_segment_note(compliance, {**GAP_IN_SEGMENT, "k1": 0.6 * GAP_IN_SEGMENT["k2"]}) == ""
     assert gap_segment_note(compliance, {**GAP_IN_SEGMENT, "gap": 0.06}) == ""

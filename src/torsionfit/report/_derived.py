@@ -169,7 +169,10 @@ class DerivedMetrics(eqx.Module):
             energy,
             values["gap"] / ARCMIN,
             values["friction_torque"],
-        ] + [q / ARCMIN for q in parts]
+        ]
+        if _three_segment(self.hyst_model):
+            out.append((values["gap"] + first_segment_twist(values)) / ARCMIN)
+        out += [q / ARCMIN for q in parts]
         if self.record is not None:
             play, c_pos, c_neg = self.record.read(self.hyst_model, params)
             deg = ANGLE_UNITS["deg"]
@@ -249,6 +252,16 @@ def _kd_over_draws(derived: DerivedMetrics, values_batch: dict, torque_Nm, speed
     return jax.vmap(lambda values: per_draw(values, torque_Nm, speed_rad_s, direction, has_ref))(values_batch)
 
 
+def _three_segment(model) -> bool:
+    return isinstance(model.compliance, m.ThreeSegmentCompliance)
+
+
+def first_segment_twist(params: dict):
+    """2·T1·(1/K1 − 1/K2), floored at 0: what a three-segment compliance's first segment adds
+    across zero torque beyond the second segment's line (rad)."""
+    return jnp.maximum(2.0 * params["t1"] * (1.0 / params["k1"] - 1.0 / params["k2"]), 0.0)
+
+
 @in_float64
 def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_pct: float = 3.0) -> DerivedMetrics:
     """Metric definitions and evaluation machinery for ``campaign`` fitted with ``model``."""
@@ -268,6 +281,11 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
         MetricSpec("dissipated_energy", "J", "model loop area per cycle, ±T_r"),
         MetricSpec("geometric_gap", "arcmin", "geometric gap β of the mesh (model only)"),
         MetricSpec("friction_torque", "Nm", "Coulomb friction level T_f (model only)"),
+        *([MetricSpec("gap_with_first_segment", "arcmin",
+                      "geometric gap β plus the twist the compliance's first segment adds across zero torque beyond "
+                      "the second segment's line, 2·T1·(1/K1 − 1/K2) when positive (model only): the gap-like lost "
+                      "motion where a soft first segment shares the gap's crossing")]
+          if _three_segment(model) else []),
         MetricSpec("twist_elastic_at_rated", "arcmin", "elastic part of the angle at T_r (end of step 5)"),
         MetricSpec("twist_friction_at_rated", "arcmin", "friction part of the angle at T_r (end of step 5)"),
         MetricSpec("twist_geometric_at_rated", "arcmin", "geometric part of the angle at T_r (end of step 5)"),

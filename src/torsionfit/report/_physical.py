@@ -83,19 +83,20 @@ def soft_segment_lost_motion_rad(compliance, params: dict) -> float:
     zero torque beyond the second segment's line (rad); 0 for another compliance or a first
     segment no softer than the second."""
     from ..model import ThreeSegmentCompliance
+    from ._derived import first_segment_twist
 
     if not isinstance(compliance, ThreeSegmentCompliance):
         return 0.0
-    k1, k2, t1 = (float(params[k]) for k in ("k1", "k2", "t1"))
-    return max(2.0 * t1 * (1.0 / k1 - 1.0 / k2), 0.0)
+    return float(first_segment_twist({k: float(params[k]) for k in ("k1", "k2", "t1")}))
 
 
-def gap_segment_note(compliance, params: dict) -> str:
+def gap_segment_note(compliance, params: dict, sum_hdi_arcmin=None) -> str:
     """One line when the compliance's first segment is at least ``SOFT_SEGMENT_RATIO`` times
     softer than the second and its lost motion at least ``SOFT_SEGMENT_SHARE`` of the gap's,
     else "": the gap and that segment then share the crossing, and the gap alone is not the
     model's gap-like lost motion (SYNTHETIC independent bench at 12.5 Hz: a 60′ gap read as 15′
-    of gap and a first segment 14× softer below 0.47 N·m adding 45′)."""
+    of gap and a first segment 14× softer below 0.47 N·m adding 45′). ``sum_hdi_arcmin``: the 95 %
+    HDI of their sum (the metric ``gap_with_first_segment``), quoted when given."""
     lost = soft_segment_lost_motion_rad(compliance, params)
     if lost <= 0.0:
         return ""
@@ -104,8 +105,10 @@ def gap_segment_note(compliance, params: dict) -> str:
     if k2 / k1 < SOFT_SEGMENT_RATIO or lost < SOFT_SEGMENT_SHARE * gap:
         return ""
     arcmin = np.degrees(1.0) * 60.0
+    interval = ("" if sum_hdi_arcmin is None else
+                f" (95 % HDI {sum_hdi_arcmin[0]:.3g}–{sum_hdi_arcmin[1]:.3g}′, gap_with_first_segment)")
     return (f"the compliance's first segment is {k2 / k1:.3g}× softer than the second below T1 = {t1:.3g} N·m: it adds "
             f"{lost * arcmin:.3g}′ of twist across zero torque beside a gap of {gap * arcmin:.3g}′ — both draw the steep "
             f"crossing about zero torque, and on these data the model splits it between them; their sum, "
-            f"{(gap + lost) * arcmin:.3g}′, is its gap-like lost motion, not geometric_gap alone (play, backlash and "
-            "lost_motion read the whole loop)")
+            f"{(gap + lost) * arcmin:.3g}′{interval}, is its gap-like lost motion, not geometric_gap alone (play, "
+            "backlash and lost_motion read the whole loop)")

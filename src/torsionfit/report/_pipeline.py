@@ -650,7 +650,8 @@ def fit_json(fit: CampaignFit, command: str | None = None) -> dict:
         hook = dahl_hook_note(problem.model.friction, {k: v["mean"] for k, v in physics.items()}, peak)
         if hook:
             diagnostics["friction_hook_note"] = hook
-    segment = gap_segment_note(problem.model.compliance, {k: v["mean"] for k, v in physics.items()})
+    segment = gap_segment_note(problem.model.compliance, {k: v["mean"] for k, v in physics.items()},
+                               metrics.get("gap_with_first_segment", {}).get("hdi95"))
     if segment:
         diagnostics["gap_segment_note"] = segment
     return {
