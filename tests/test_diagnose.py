@@ -500,3 +500,20 @@ def test_kinematic_error_and_speed_dependence_are_both_found(tmp_path, draw):
     assert all(s.delta_elpd > 2 * s.delta_elpd_se > 0 for s in d.steps), _summary(d)
     assert not d.unexplained, _summary(d)
     _check_finite(d)
+
+
+def test_the_summary_prints_the_final_models_widening_and_notes():
+    """The final metrics' widening and every note they carry reach the summary, one line each."""
+    from torsionfit.diagnose._report import FINAL_NOTES
+
+    doc = {"rmse_base": 10.0, "steps": [], "rejected": [], "rmse_final": 10.0, "noise_estimate": 1.0, "added": [],
+           "unexplained": False, "notes": [],
+           "final_metrics": {"sampler": "laplace", "misfit_inflation": 44.0,
+                             "metrics": {"play": {"mean": 1.0, "hdi95": [0.5, 1.5], "unit": "arcmin"}},
+                             **{key: f"<{key}>" for key, _ in FINAL_NOTES}}}
+    text = summary_text(doc)
+    assert "likelihood tempered by 1/44 for misfit" in text
+    for key, label in FINAL_NOTES:
+        assert f"  {label}: <{key}>" in text
+    doc["final_metrics"]["misfit_inflation"] = 1.0
+    assert "tempered" not in summary_text(doc)

@@ -74,18 +74,15 @@ def summary_text(doc: dict) -> str:
         for name, e in doc["final_metrics"]["metrics"].items():
             lo, hi = e["hdi95"]
             lines.append(f"  {name:34s} {e['mean']:11.5g}   [{lo:10.5g}, {hi:10.5g}]  {e['unit']}")
-        if doc["final_metrics"].get("metrics_off_data_note"):
-            lines.append(f"  off the data: {doc['final_metrics']['metrics_off_data_note']}")
-        for key in ("friction_hook_note", "gap_segment_note"):
-            if doc["final_metrics"].get(key):
-                lines.append(f"  physics: {doc['final_metrics'][key]}")
-        if doc["final_metrics"].get("noise_note"):
-            lines.append(f"  noise: {doc['final_metrics']['noise_note']}")
-        if doc["final_metrics"].get("laplace_note"):
-            lines.append(f"  laplace: {doc['final_metrics']['laplace_note']}")
+        lines += [f"  {label}: {doc['final_metrics'][key]}" for key, label in FINAL_NOTES if doc["final_metrics"].get(key)]
     lines.append("unexplained: " + (doc["unexplained_description"] if doc["unexplained"] else _NOTHING_LEFT))
     lines += [f"note: {n}" for n in doc.get("notes", [])]
     return "\n".join(lines)
+
+
+#: fit.json's notes the final metrics carry, and the summary's label of each
+FINAL_NOTES = (("metrics_off_data_note", "off the data"), ("friction_hook_note", "physics"),
+               ("gap_segment_note", "physics"), ("noise_note", "noise"), ("laplace_note", "laplace"))
 
 
 def final_metrics(d: Diagnosis, seed: int = 0) -> dict:
@@ -101,7 +98,7 @@ def final_metrics(d: Diagnosis, seed: int = 0) -> dict:
     # the trail compares fits under the plain likelihood; an interval is a claim about the
     # reducer, and where the residual keeps structure over whole ramps the data carry fewer
     # independent samples than their count (SYNTHETIC independent bench, twist-side loop:
-    # k = 44, the plain intervals of the loading stiffness and the gap missed the simulator's)
+    # k = 44, the plain interval of the loading stiffness missed the simulator's)
     problem, map_result = widen_for_misfit(f.map_result.problem, f.map_result)
     options = FitOptions(effects=dict(f.effects), sampler="laplace")
     doc = fit_json(finish_fit(f.context.campaign, options, problem.model, problem, map_result, seed))
@@ -113,9 +110,7 @@ def final_metrics(d: Diagnosis, seed: int = 0) -> dict:
             "metrics": doc["metrics"], "parameters": doc["parameters"],
             # the metrics the data read directly whose reading the final model's interval misses
             "metrics_off_data": doc["diagnostics"]["metrics_off_data"],
-            **{key: doc["diagnostics"][key] for key in ("metrics_off_data_note", "friction_hook_note", "gap_segment_note",
-                                                           "noise_note", "laplace_note")
-               if key in doc["diagnostics"]}}
+            **{key: doc["diagnostics"][key] for key, _ in FINAL_NOTES if key in doc["diagnostics"]}}
 
 
 def write_diagnosis(d: Diagnosis, campaign, out_dir, seed: int = 0, command: str | None = None) -> dict:

@@ -643,15 +643,15 @@ def fit_json(fit: CampaignFit, command: str | None = None) -> dict:
             physics[key] = {**summarise(np.asarray(forward(p.constraint, jnp.asarray(fit.draws_u[:, i])))),
                             "unit": p.unit, "description": p.description}
             i += 1
+    means = {k: v["mean"] for k, v in physics.items()}  # the physical checks read the posterior mean
     hysteresis = fit.campaign.hysteresis_runs
     if hysteresis:
         # at the posterior mean and the largest load any loop reaches
         peak = max(float(np.max(np.abs(r.torque_Nm))) for r in hysteresis)
-        hook = dahl_hook_note(problem.model.friction, {k: v["mean"] for k, v in physics.items()}, peak)
+        hook = dahl_hook_note(problem.model.friction, means, peak)
         if hook:
             diagnostics["friction_hook_note"] = hook
-    segment = gap_segment_note(problem.model.compliance, {k: v["mean"] for k, v in physics.items()},
-                               metrics.get("gap_with_first_segment", {}).get("hdi95"))
+    segment = gap_segment_note(problem.model.compliance, means, metrics.get("gap_with_first_segment", {}).get("hdi95"))
     if segment:
         diagnostics["gap_segment_note"] = segment
     return {
