@@ -26,6 +26,7 @@ from pathlib import Path
 import jax
 
 from torsionfit.diagnose import DiagnoseOptions, diagnose, write_diagnosis
+from torsionfit.diagnose._report import FINAL_NOTES
 from torsionfit.fit import NoiseOptions
 from torsionfit.io import load_campaign
 from torsionfit.metrics import campaign_metrics
@@ -77,6 +78,7 @@ def run_case(name: str, noise_label: str, out: Path, seed: int) -> str:
     steps = ", ".join(f"{s['effect']} ({s['rmse_before']:.0f} → {s['rmse_after']:.0f}″)" for s in doc["steps"]) or "nothing"
     off = doc["final_metrics"].get("metrics_off_data_note") or ""
     flagged = ", ".join(m for m in ("play", "stiffness_loading") if f"{m} " in off) or "none"
+    notes = ", ".join(key for key, _ in FINAL_NOTES if key != "metrics_off_data_note" and doc["final_metrics"].get(key)) or "none"
     jax.clear_caches()
     unexplained = "yes" if doc["unexplained"] else "no"
     return (f"| {name} | {noise_label} | {steps} | {doc['rmse_base']:.0f} → {doc['rmse_final']:.0f} | "
@@ -84,7 +86,7 @@ def run_case(name: str, noise_label: str, out: Path, seed: int) -> str:
             f"{perfect * ARCMIN_PER_RAD * 60.0:.0f} | {unexplained} | {reducer.gap_rad * ARCMIN_PER_RAD:.1f} | {_interval(metrics['geometric_gap'])} | "
             f"{_friction_truth(reducer)} | {_interval(metrics['friction_torque'])} | "
             f"{exact['stiffness_loading']['value']:.4f} / {data['stiffness_loading']['value']:.4f} | "
-            f"{_interval(metrics['stiffness_loading'])} | {doc['final_metrics']['misfit_inflation']:.3g} | {flagged} | "
+            f"{_interval(metrics['stiffness_loading'])} | {doc['final_metrics']['misfit_inflation']:.3g} | {flagged} | {notes} | "
             f"{seconds:.0f} | [figure](figures/{label}.png) |")
 
 
@@ -117,7 +119,10 @@ def main(argv=None) -> int:
         "mean and 95 % HDI (Laplace, widened for misfit); *off the data*: the fit's own check that its class metrics miss the data's "
         "reading of the same record (`torsionfit fit` writes it to fit.json); *widened ×*: the long-run variance ratio k "
         "of the final fit's whitened residuals by which its intervals are widened (the likelihood to the power 1/k, "
-        "as `torsionfit fit` widens; 1: no structure over whole ramps). *Angle noise*: the RMS of the record's "
+        "as `torsionfit fit` widens; 1: no structure over whole ramps); *final notes*: the notes of `fit.json` the "
+        "final metrics carry (`noise_note`: an AR(1) coefficient near its bound; `friction_hook_note`: a Dahl element "
+        "that hooks; `gap_segment_note`: a soft first compliance segment sharing the gap's crossing; `laplace_note`: "
+        "a widened posterior that is not Gaussian; see outputs.md). *Angle noise*: the RMS of the record's "
         "angle against the simulator's twist (the noise and the quantisation); *simulator on the read torque*: the RMS "
         "of what the simulator itself leaves on the record when driven by the record's torque, noise included, as any "
         "model fed the read torque is — the torque noise carried through the steep gap crossings (most of it, in "
@@ -127,8 +132,8 @@ def main(argv=None) -> int:
         "| reducer | noise | added (RMSE before → after) | RMSE base → final (″) | noise estimate (″) | angle noise (″) | "
         "simulator on the read torque (″) | unexplained | gap truth | "
         "gap model | friction truth | friction model | stiffness_loading truth / data | stiffness_loading model | "
-        "widened × | off the data | wall (s) | last step |",
-        "| --- | --- | --- | ---: | ---: | ---: | ---: | --- | ---: | --- | --- | --- | --- | --- | ---: | --- | ---: | --- |",
+        "widened × | off the data | final notes | wall (s) | last step |",
+        "| --- | --- | --- | ---: | ---: | ---: | ---: | --- | ---: | --- | --- | --- | --- | --- | ---: | --- | --- | ---: | --- |",
         *rows, ""])
     (args.output / "independent-bench.md").write_text(text)
     print(f"wrote {args.output / 'independent-bench.md'}", file=sys.stderr)
