@@ -13,7 +13,8 @@ initial-pos1, base model, τ_d 2.2 N·m against T_f 2.9 N·m).
 
 import numpy as np
 
-from ..model import DahlFriction
+from ..model import DahlFriction, ThreeSegmentCompliance
+from ._derived import first_segment_twist
 
 
 def _dahl_terms(friction, params: dict, peak_load_Nm: float):
@@ -82,9 +83,6 @@ def soft_segment_lost_motion_rad(compliance, params: dict) -> float:
     """``2·T1·(1/K1 − 1/K2)``: the twist a three-segment compliance's first segment adds across
     zero torque beyond the second segment's line (rad); 0 for another compliance or a first
     segment no softer than the second."""
-    from ..model import ThreeSegmentCompliance
-    from ._derived import first_segment_twist
-
     if not isinstance(compliance, ThreeSegmentCompliance):
         return 0.0
     return float(first_segment_twist({k: float(params[k]) for k in ("k1", "k2", "t1")}))
@@ -98,7 +96,7 @@ def gap_segment_note(compliance, params: dict, sum_hdi_arcmin=None) -> str:
     of gap and a first segment 14× softer below 0.47 N·m adding 45′). ``sum_hdi_arcmin``: the 95 %
     HDI of their sum (the metric ``gap_with_first_segment``), quoted when given."""
     lost = soft_segment_lost_motion_rad(compliance, params)
-    if lost <= 0.0:
+    if lost <= 0.0:  # another compliance, or a first segment no softer than the second
         return ""
     k1, k2, t1 = (float(params[k]) for k in ("k1", "k2", "t1"))
     gap = float(params.get("gap", 0.0))
