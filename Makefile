@@ -25,7 +25,7 @@ test: $(BIN)/.installed
 	$(BIN)/python -m pytest -q tests/test_batch_sampler.py
 	@log=$$(mktemp); \
 	$(BIN)/python -m pytest -q tests/test_nuts.py > $$log 2>&1 & nuts=$$!; \
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=30 --ignore tests/test_batch_sampler.py --ignore tests/test_nuts.py; \
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=70 --ignore tests/test_batch_sampler.py --ignore tests/test_nuts.py; \
 	pool=$$?; wait $$nuts; nuts_rc=$$?; \
 	echo "--- tests/test_nuts.py (run beside the pool):"; cat $$log; rm -f $$log; \
 	test $$pool -eq 0 && test $$nuts_rc -eq 0
