@@ -350,6 +350,19 @@ def test_bad_windows_are_input_errors():
         hysteresis_metrics(hyst_run(tau, -gap_loop(tau)), T_R)
 
 
+
+def test_a_loop_run_the_wrong_way_round_gives_no_play():
+    """Arrays given directly (the manifest's reader stops such a run): a reversed angle makes
+    the loop width at zero torque negative; no class metric is reported, each note says why."""
+    tau = protocol(1.05 * T_R, n_quarter=500)
+    result = campaign_metrics(Campaign(Reducer("u", T_R), Instrument(), (hyst_run(tau, -gap_loop(tau), name="rev"),)))
+    run = result["runs"][0]
+    assert "play" not in run["metrics"] and "stiffness_loading" not in run["metrics"]
+    assert "below zero" in run["notes"]["play"] and "check the angle and torque signs" in run["notes"]["play"]
+    assert "angle does not grow" in run["notes"]["stiffness_elastic"]
+    forward = campaign_metrics(Campaign(Reducer("u", T_R), Instrument(), (hyst_run(tau, gap_loop(tau), name="fw"),)))
+    assert forward["runs"][0]["metrics"]["play"]["value"] > 0
+
 # ----------------------------------------------------------------------------- TE
 
 N_REV = 3600  # samples per output revolution (0.1° steps)

@@ -149,6 +149,102 @@ def test_quantisation_step_is_found_only_on_quantised_data():
     assert quantisation_step(np.round(smooth / 7.0) * q + rng.normal(0, q / 10, 2000)) is None
 
 
+# ----------------------------------------------------------------------------- angle sign
+
+
+def _negate(cell: str) -> str:
+    return repr(-float(cell))
+
+
+def test_a_reversed_angle_stops_with_one_line_naming_the_column(tmp_path):
+    """A bench that counts the angle the other way reads cleanly and gives a loop run the wrong
+    way round (the measured play read −66.6 arcmin): the run stops, naming the file, the columns
+    and the key that declares it."""
+    path = relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_arcmin", _negate)
+    with pytest.raises(InputError) as err:
+        load_campaign(path)
+    message = str(err.value)
+    assert "\n" not in message and "hysteresis-1Nm_per_s.csv" in message
+    assert "column 'angle_arcmin' falls as column 'torque_Nm' rises" in message
+    assert "declare angle_sign = -1 for this run" in message
+
+
+def test_angle_sign_declares_a_reversed_angle_and_contradicting_it_stops(tmp_path):
+    """``angle_sign = -1`` negates the column on reading: the metrics are the original's. The
+    same key on a file whose angle grows with torque stops, saying to drop it."""
+    from torsionfit.metrics import campaign_metrics
+
+    path = relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_arcmin", _negate)
+    text = path.read_text()
+    path.write_text(text.replace('kind = "hysteresis"', 'kind = "hysteresis"\nangle_sign = -1'))
+    assert text.count('kind = "hysteresis"') == 3
+    flipped = load_campaign(path)
+    original = load_campaign(DATA / "paper-large" / "campaign.toml")
+    for a, b in zip(flipped.runs, original.runs):
+        if a.kind == "hysteresis":
+            np.testing.assert_allclose(a.angle_rad, b.angle_rad, atol=1e-12)
+            assert any("angle_sign = -1" in note for note in a.notes)
+    m_flipped, m_original = campaign_metrics(flipped)["runs"][0], campaign_metrics(original)["runs"][0]
+    assert m_flipped["metrics"]["stiffness_elastic"]["value"] == pytest.approx(
+        m_original["metrics"]["stiffness_elastic"]["value"], rel=1e-9)
+    wrong = tmp_path / "wrong" / "campaign.toml"
+    shutil.copytree(DATA / "paper-large", wrong.parent)
+    wrong.write_text(wrong.read_text().replace('kind = "hysteresis"', 'kind = "hysteresis"\nangle_sign = -1'))
+    with pytest.raises(InputError, match=r"falls as column 'torque_Nm' rises .*drop angle_sign = -1"):
+        load_campaign(wrong)
+
+
+@pytest.mark.parametrize("value", ["2", "true", '"-1"', "0"])
+def test_angle_sign_other_than_plus_or_minus_one_is_one_line(tmp_path, value):
+    folder = tmp_path / "c"
+    shutil.copytree(DATA / "paper-large", folder)
+    path = folder / "campaign.toml"
+    path.write_text(path.read_text().replace('kind = "hysteresis"', f'kind = "hysteresis"\nangle_sign = {value}', 1))
+    with pytest.raises(InputError, match=r"runs\[0\].*angle_sign must be 1 .* or -1"):
+        load_campaign(path)
+
+
+def test_a_rigid_units_noise_never_reads_as_a_reversed_angle():
+    """Twist below the angle noise (a slope of either sign inside the scatter at the ends) and a
+    run loaded one way only are not checked."""
+    from torsionfit.io._convention import check_twist_sign
+
+    rng = np.random.default_rng(0)
+    t = np.linspace(0.0, 40.0, 4000)
+    torque = 100.0 * np.sin(2 * np.pi * t / 10.0)
+    noise = 2.0 * ARCMIN * rng.standard_normal(t.size)
+    for slope in (-1e-3 * ARCMIN, 0.0, 1e-3 * ARCMIN):  # ±0.1 arcmin at the ends, noise 2 arcmin
+        check_twist_sign(torque, slope * torque + noise, "f.csv", "angle", "torque")
+    check_twist_sign(np.abs(torque), -0.1 * ARCMIN * np.abs(torque), "f.csv", "angle", "torque")
+    with pytest.raises(InputError, match="f.csv: column 'angle' falls"):
+        check_twist_sign(torque, -0.1 * ARCMIN * torque + noise, "f.csv", "angle", "torque")
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="measured data ../shared/data/cycloidal-jv is absent")
+def test_a_measured_loop_with_its_angle_reversed_stops_and_reads_with_angle_sign(tmp_path):
+    """REAL measured loop (split initial-pos1), its POSITION negated in a temporary copy: it
+    stops; declared with angle_sign = -1 its play reads as the original file's."""
+    import gzip
+
+    from torsionfit.metrics import campaign_metrics
+
+    lines = gzip.open(SHARED / "split-pccf" / "initial-pos1.csv.gz", "rt").read().splitlines()
+    k = lines[0].split(",").index("POSITION")
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        row[k] = _negate(row[k])
+    (tmp_path / "flip.csv").write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    text = (EXAMPLES / "split-pccf-initial-pos1.toml").read_text()
+    text = text.replace("../../../shared/data/cycloidal-jv/split-pccf/initial-pos1.csv.gz", "flip.csv")
+    (tmp_path / "flip.toml").write_text(text)
+    with pytest.raises(InputError, match=r"flip.csv: column 'POSITION' falls as column 'TORQUE' rises"):
+        load_campaign(tmp_path / "flip.toml")
+    (tmp_path / "flip.toml").write_text(text.replace('kind = "hysteresis"', 'kind = "hysteresis"\nangle_sign = -1'))
+    play = campaign_metrics(load_campaign(tmp_path / "flip.toml"))["runs"][0]["metrics"]["play"]["value"]
+    original = campaign_metrics(load_campaign(EXAMPLES / "split-pccf-initial-pos1.toml"))["runs"][0]["metrics"]["play"]
+    assert play == pytest.approx(original["value"], rel=1e-9) and play > 0
+
+
 # ----------------------------------------------------------------------------- TE direction
 
 
@@ -217,21 +313,27 @@ def test_decimal_comma_in_a_comma_separated_file_gets_a_hint(tmp_path):
 
 
 def test_metric_errors_name_the_run_file(write_files, capsys):
-    """'no full loop' and 'the angle does not grow with torque' name the file to open."""
+    """'no full loop' and 'the angle does not grow with torque' name the file to open (arrays given
+directly: the manifest's reader stops a reversed angle first)."""
     from torsionfit.metrics import hysteresis_metrics
 
     t = np.linspace(0.0, 40.0, 801)
     tau = 100.0 * np.sin(2 * np.pi * t / 20.0)
     rows = "\n".join(f"{a:.9g},{b:.9g},{c:.9g}" for a, b, c in zip(t, tau, -tau / 20.0))
     path = write_files({"campaign.toml": '[reducer]\nname = "u"\nrated_torque_Nm = 100.0\n'
-                                         '[[runs]]\nname = "h"\nkind = "hysteresis"\nfile = "h.csv"\n',
+                                         '[[runs]]\nname = "h"\nkind = "hysteresis"\nfile = "h.csv"\nangle_sign = -1\n',
                         "h.csv": "# SYNTHETIC\ntime_s,torque_Nm,angle_arcmin\n" + rows + "\n"})
-    (run,) = load_campaign(path).runs
+    (run,) = load_campaign(path).runs  # read with its sign declared; the arrays reversed below
+    reversed_run = type(run)(name="h", time_s=t, torque_Nm=tau, angle_rad=-run.angle_rad, source=run.source)
     with pytest.raises(InputError, match=r"hysteresis run 'h' \(file .*h\.csv\): the angle does not grow"):
-        hysteresis_metrics(run, 100.0)
+        hysteresis_metrics(reversed_run, 100.0)
     one_sided = type(run)(name="h", time_s=t, torque_Nm=np.abs(tau), angle_rad=np.abs(tau) * ARCMIN,
                           source=run.source)
     with pytest.raises(InputError, match=r"hysteresis run 'h' \(file .*h\.csv\): no full loop found"):
         hysteresis_metrics(one_sided, 100.0)
-    assert main(["metrics", str(path)]) == 0  # the play can be read; the rest are notes
-    assert "(file " in capsys.readouterr().out
+    assert main(["metrics", str(path)]) == 0
+    # the file read without its sign stops at reading, in one line naming the file and column
+    path.write_text(path.read_text().replace("angle_sign = -1\n", ""))
+    assert main(["metrics", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "h.csv: column 'angle_arcmin' falls" in err, err

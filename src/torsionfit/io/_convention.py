@@ -1,4 +1,11 @@
-"""Does loaded TE move with the load the way the declared ``te_convention`` says?
+"""Do the data move the way the declared sign conventions say?
+
+A hysteresis run's angle grows with its torque: positive torque twists the output forward
+(``angle_sign`` = -1 declares a bench that counts the angle the other way). A reversed angle
+reads cleanly and gives a loop run the wrong way round, a negative play and negative slopes, so
+a run whose angle clearly falls as the torque rises stops (:func:`check_twist_sign`).
+
+Loaded TE, below: does it move with the load the way the declared ``te_convention`` says?
 
 In memory TE is lag-positive: the twist makes TE grow with the signed mesh torque
 d·(|τ| + T_f), d = +1 forward, −1 backward. So, between two runs that share a TE zero,
@@ -18,11 +25,36 @@ import numpy as np
 
 from .._errors import InputError
 from ._campaign import TransmissionErrorRun
+from ._plausibility import ARCMIN, loop_ends
 
 #: a difference counts when it exceeds this many standard errors of the two means
 MARGIN_SE = 4.0
 #: samples over which TE noise is taken as correlated (for the standard error of a mean)
 CORRELATION_SAMPLES = 20
+
+
+def check_twist_sign(torque_Nm, angle_rad, where: str, angle_column: str, torque_column: str,
+                     angle_sign: int = 1) -> None:
+    """InputError naming the file's columns when a hysteresis run's angle (after ``angle_sign``)
+    falls from its negative to its positive torque end by more than it spreads at either end
+    (the median angle of the samples beyond 90 % of each extreme torque; the spread their
+    interquartile range, so a rigid unit's noise never stops a run). A run loaded one way only
+    has no such ends and is not checked."""
+    ends = loop_ends(torque_Nm)
+    if ends is None:
+        return
+    theta = np.asarray(angle_rad, float)
+    top, bottom = theta[ends[0]], theta[ends[1]]
+    rise = float(np.median(top) - np.median(bottom))
+    spread = max(float(np.subtract(*np.percentile(x, [75, 25]))) for x in (top, bottom))
+    if rise >= 0 or -rise <= spread:
+        return
+    fix = ("drop angle_sign = -1: the angle read as it is grows with torque" if angle_sign == -1 else
+           "if the bench counts the angle the other way, declare angle_sign = -1 for this run")
+    raise InputError(
+        f"{where}: column {angle_column!r} falls as column {torque_column!r} rises ({-rise / ARCMIN:.4g} arcmin "
+        f"lower at the positive torque end than at the negative one); expected positive torque to twist the "
+        f"output forward, to a larger angle; {fix}")
 
 
 def _mean_and_se(run: TransmissionErrorRun) -> tuple[float, float]:

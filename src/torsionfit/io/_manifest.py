@@ -39,7 +39,7 @@ _INSTRUMENT_KEYS = (
 )
 _COMMON_RUN_KEYS = ("name", "kind", "file", "columns", "units", "select", "temperature_C")
 _RUN_KEYS = {
-    "hysteresis": _COMMON_RUN_KEYS + ("loading_rate_Nm_per_s", "peak_torque_Nm", "condition"),
+    "hysteresis": _COMMON_RUN_KEYS + ("loading_rate_Nm_per_s", "peak_torque_Nm", "angle_sign", "condition"),
     "transmission_error": _COMMON_RUN_KEYS
     + ("speed_rpm", "input_speed_rpm", "torque_Nm", "direction", "te_convention", "zero_group"),
 }
@@ -240,6 +240,7 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str, reducer: Reduce
             condition=_select(entry, where, "condition"),
             loading_rate_Nm_per_s=_number(entry, "loading_rate_Nm_per_s", where, positive=True),
             peak_torque_Nm=_peak(entry, where),
+            angle_sign=_angle_sign(entry, where),
         )
     direction = _text(entry, "direction", where, required=True)
     if direction not in DIRECTIONS:
@@ -266,6 +267,16 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str, reducer: Reduce
         zero_group=_text(entry, "zero_group", where),
         sample_rate_Hz=instrument.sample_rate_Hz,
     )
+
+
+def _angle_sign(entry: dict, where: str) -> int:
+    """``angle_sign``: 1 (default: positive torque twists the output forward, to a larger angle)
+    or -1 (the bench counts the angle the other way: the column is negated on reading)."""
+    value = entry.get("angle_sign", 1)
+    if isinstance(value, bool) or value not in (1, -1):
+        raise InputError(f"{where}: angle_sign must be 1 (positive torque gives a larger angle) or -1 (the bench "
+                         f"counts the angle the other way: the column is negated on reading), got {value!r}")
+    return int(value)
 
 
 def _canonical_table(entry: dict, key: str, kind: str, where: str) -> dict[str, str]:

@@ -9,6 +9,7 @@ import numpy as np
 from .._errors import InputError
 from ._campaign import HysteresisRun, Reducer, TransmissionErrorRun
 from ._columns import resolve_columns
+from ._convention import check_twist_sign
 from ._plausibility import check_encoder_step, check_hysteresis, check_te_direction
 from ._read import Table, drop_trailing_pad, read_table, rows_passing, select_rows
 
@@ -36,6 +37,7 @@ class RunSpec:
     condition: dict = field(default_factory=dict)  # [runs.condition]: rules of the conditioning rows
     loading_rate_Nm_per_s: float | None = None
     peak_torque_Nm: float | str | None = None  # N·m, or "data": the run's own peak
+    angle_sign: int = 1  # -1: the bench counts the angle the other way; negated on reading
     # transmission error
     speed_rpm: float | None = None
     torque_Nm: float | None = None
@@ -119,6 +121,11 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
             f"or \"{PEAK_FROM_DATA}\" for the peak its cycles reach)"
         )
     angle = si("angle")
+    if spec.angle_sign == -1:
+        angle = -angle
+        notes.append(f"angle_sign = -1: column {found['angle'].name!r} negated on reading (positive torque twists "
+                     f"the output forward)")
+    check_twist_sign(torque, angle, where, found["angle"].name, found["torque"].name, spec.angle_sign)
     # after the errors: a warning is for data that read cleanly
     check_hysteresis(torque, angle, reducer.rated_torque_Nm, where, found["angle"].name,
                      found["angle"].unit, found["torque"].name)

@@ -1056,6 +1056,14 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
     single = len(classes.classes) == 1
     deg = lambda a: from_si(a, "angle", "deg")  # noqa: E731
     play = play_of(small)
+    if play < 0:
+        # friction and gap open a loop the other way: a negative width is a reversed sign
+        # (the manifest's reader stops such a run; arrays given directly reach this)
+        why = (f"hysteresis run {run.name!r}: the smallest cycles' loop width at zero torque is "
+               f"{from_si(play, 'angle', 'arcmin'):.4g} arcmin, below zero (the decreasing-torque branch "
+               f"under the increasing one: a loop run the wrong way round); expected the angle to grow with "
+               f"torque (check the angle and torque signs)")
+        return out, {name: why for name in CLASS_METRICS}
     amplitudes = ", ".join(f"±{c.amplitude_Nm:.3g}" for c in classes.classes)
     play_note = (
         f"loop width at zero torque (decreasing- minus increasing-torque branch) of the "
