@@ -15,19 +15,18 @@ $(BIN)/.installed: pyproject.toml
 run: $(BIN)/.installed
 	$(BIN)/python scripts/main_job.py -o $(OUT)
 
-# the threaded batch-sampler tests and the NUTS tests run in processes of their own (they compile
+# the threaded batch-sampler tests and the NUTS tests run in a process of their own (they compile
 # many programs; tests/conftest.py drops compiled programs when a process holds many, as a long-lived
 # xdist worker otherwise runs out of memory mappings (vm.max_map_count) inside XLA). Every test process
-# computes on one core (tests/conftest.py), so the NUTS file runs beside the two-worker pool
+# computes on one core (tests/conftest.py), so that process runs beside the two-worker pool
 # rather than before it: its log is printed when both are done, and either failing fails the target
 # (the pool takes the longest files first: tests/conftest.py, LONGEST_FILES)
 test: $(BIN)/.installed
-	$(BIN)/python -m pytest -q tests/test_batch_sampler.py
 	@log=$$(mktemp); \
-	$(BIN)/python -m pytest -q tests/test_nuts.py > $$log 2>&1 & nuts=$$!; \
+	$(BIN)/python -m pytest -q tests/test_batch_sampler.py tests/test_nuts.py > $$log 2>&1 & nuts=$$!; \
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=70 --ignore tests/test_batch_sampler.py --ignore tests/test_nuts.py; \
 	pool=$$?; wait $$nuts; nuts_rc=$$?; \
-	echo "--- tests/test_nuts.py (run beside the pool):"; cat $$log; rm -f $$log; \
+	echo "--- tests/test_batch_sampler.py and tests/test_nuts.py (run beside the pool):"; cat $$log; rm -f $$log; \
 	test $$pool -eq 0 && test $$nuts_rc -eq 0
 
 bench: $(BIN)/.installed
