@@ -295,7 +295,7 @@ def clean_case(folder: Path, seed: int) -> Case:
     return Case(campaign, seed, {}, {})
 
 
-@pytest.mark.parametrize("seed", [3, pytest.param(1234, marks=ZOO_FOR_TIME_SKIP)])
+@pytest.mark.parametrize("seed", [3, 1234])
 def test_clean_campaign_adds_nothing(tmp_path, seed):
     case = clean_case(tmp_path, seed)
     d = _diagnose(case.campaign, case.seed)

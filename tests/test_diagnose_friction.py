@@ -12,8 +12,8 @@ effect's name and read it back).
 
 Cost: every campaign has the same shape, so the base model, the signatures and each extension
 compile once per process (about a minute for the first diagnosis, 20–30 s per extension); a
-diagnosis is 5–15 s once compiled. Every case's second seed, and both seeds of the level's lag
-and memory, run only with ``TORSIONFIT_DIAGNOSE_ZOO_CASES=1`` (the suite's time budget).
+diagnosis is 5–15 s once compiled. Every effect's second seed runs only with
+``TORSIONFIT_DIAGNOSE_ZOO_CASES=1`` (the suite's time budget); the clean campaign runs both.
 """
 
 from pathlib import Path
@@ -32,16 +32,14 @@ RATED = 380.0  # N·m
 #: 1.18–1.20″); a fit "at the noise" stays below
 AT_NOISE = 1.3 * float(np.sqrt(1.0 + 1.0 / 12.0))
 
-_ZOO_ONLY = pytest.mark.skipif(not RUN_ZOO_CASES, reason="left out of the suite for its time: "
-                               "TORSIONFIT_DIAGNOSE_ZOO_CASES=1 runs it")
-#: every case's second seed is left out of the suite for its time (TORSIONFIT_DIAGNOSE_ZOO_CASES=1
-#: runs them; the clean campaign's as well): the four undeclared cases' took 86 s of the pool, the
-#: held gap's centre (found undeclared and in a declared centred band) about a minute
-SECOND_SEED_ZOO_ONLY = [pytest.param(0, id="seed0"), pytest.param(1, id="seed1", marks=_ZOO_ONLY)]
-#: the level's lag and memory (each refitted in the other's place when kept): both seeds zoo-only
-#: (35 and 47 s of the pool); the suite finds the instantaneous level they extend
-#: (load_dependent_friction), the zoo's table and the validation of the measured loops these
-BOTH_SEEDS_ZOO_ONLY = [pytest.param(seed, id=f"seed{seed}", marks=_ZOO_ONLY) for seed in (0, 1)]
+#: the clean campaign: both seeds in the suite (nothing new compiles for them)
+CLEAN_SEEDS = [pytest.param(0, id="seed0"), pytest.param(1, id="seed1", marks=pytest.mark.slow)]
+#: every effect's second seed is left out of the suite for its time (TORSIONFIT_DIAGNOSE_ZOO_CASES=1
+#: runs them): the four undeclared cases' took 86 s of the pool, the level's lag and memory
+#: (each refitted in the other's place when kept) and the held gap's centre (found undeclared
+#: and in a declared centred band) about a minute each pair
+SECOND_SEED_ZOO_ONLY = [pytest.param(0, id="seed0"), pytest.param(1, id="seed1", marks=pytest.mark.skipif(
+    not RUN_ZOO_CASES, reason="second seed left out of the suite for its time: TORSIONFIT_DIAGNOSE_ZOO_CASES=1 runs it"))]
 
 
 def _load_dependent(rng):
@@ -150,7 +148,7 @@ def test_diagnose_finds_undeclared_friction(tmp_path, effect, seed):
         assert d.final.rmse_arcsec <= 0.7 * d.base.rmse_arcsec, _summary(d)
 
 
-@pytest.mark.parametrize("seed", BOTH_SEEDS_ZOO_ONLY)
+@pytest.mark.parametrize("seed", SECOND_SEED_ZOO_ONLY)
 def test_diagnose_finds_a_friction_level_lagging_the_load(tmp_path, seed):
     """In two steps (the instantaneous level, then its lag), or as the memory's rival: at one
     loading rate a remembered peak's signature can rank first, and the lag refitted in its
@@ -164,7 +162,7 @@ def test_diagnose_finds_a_friction_level_lagging_the_load(tmp_path, seed):
     assert not d.unexplained, _summary(d)
 
 
-@pytest.mark.parametrize("seed", BOTH_SEEDS_ZOO_ONLY)
+@pytest.mark.parametrize("seed", SECOND_SEED_ZOO_ONLY)
 def test_diagnose_finds_a_friction_level_remembering_the_peak_load(tmp_path, seed):
     """Found from the base model in one step (a remembered peak is not the instantaneous level
     plus a correction: see ``FrictionLoadMemory``), or after the instantaneous level; never as a
@@ -214,7 +212,7 @@ def test_diagnose_finds_the_centre_of_a_declared_held_gap(tmp_path, seed):
     assert [s.effect for s in d.steps] == ["gap_centre"], _summary(d)
 
 
-@pytest.mark.parametrize("seed", SECOND_SEED_ZOO_ONLY)
+@pytest.mark.parametrize("seed", CLEAN_SEEDS)
 def test_clean_friction_campaign_adds_neither(tmp_path, seed):
     d = _run(tmp_path, None, seed)
     assert d.steps == [], _summary(d)

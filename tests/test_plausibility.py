@@ -205,8 +205,8 @@ def test_angle_sign_other_than_plus_or_minus_one_is_one_line(tmp_path, value):
 
 
 def test_a_rigid_units_noise_never_reads_as_a_reversed_angle():
-    """Twist below the angle noise (a slope of either sign inside the scatter at the ends) and a
-    run loaded one way only are not checked."""
+    """Twist below the angle noise (a slope of either sign inside the scatter) and a drift in time
+    never stop a run; a reversed angle does, loaded both ways or one way only."""
     from torsionfit.io._convention import check_twist_sign
 
     rng = np.random.default_rng(0)
@@ -214,10 +214,13 @@ def test_a_rigid_units_noise_never_reads_as_a_reversed_angle():
     torque = 100.0 * np.sin(2 * np.pi * t / 10.0)
     noise = 2.0 * ARCMIN * rng.standard_normal(t.size)
     for slope in (-1e-3 * ARCMIN, 0.0, 1e-3 * ARCMIN):  # ±0.1 arcmin at the ends, noise 2 arcmin
-        check_twist_sign(torque, slope * torque + noise, "f.csv", "angle", "torque")
-    check_twist_sign(np.abs(torque), -0.1 * ARCMIN * np.abs(torque), "f.csv", "angle", "torque")
+        check_twist_sign(t, torque, slope * torque + noise, "f.csv", "angle", "torque")
+    # a drift in time across less than a cycle (the ends visited once each) is not the load's
+    check_twist_sign(t[:1000], torque[:1000], 0.1 * t[:1000], "f.csv", "angle", "torque")
     with pytest.raises(InputError, match="f.csv: column 'angle' falls"):
-        check_twist_sign(torque, -0.1 * ARCMIN * torque + noise, "f.csv", "angle", "torque")
+        check_twist_sign(t, torque, -0.1 * ARCMIN * torque + noise, "f.csv", "angle", "torque")
+    with pytest.raises(InputError, match="falls"):  # loaded one way only
+        check_twist_sign(t, np.abs(torque), -0.1 * ARCMIN * np.abs(torque) + noise, "f.csv", "angle", "torque")
 
 
 @pytest.mark.skipif(not SHARED.is_dir(), reason="measured data ../shared/data/cycloidal-jv is absent")

@@ -125,7 +125,7 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
         angle = -angle
         notes.append(f"angle_sign = -1: column {found['angle'].name!r} negated on reading (positive torque twists "
                      f"the output forward)")
-    check_twist_sign(torque, angle, where, found["angle"].name, found["torque"].name, spec.angle_sign)
+    check_twist_sign(time, torque, angle, where, found["angle"].name, found["torque"].name, spec.angle_sign)
     # after the errors: a warning is for data that read cleanly
     check_hysteresis(torque, angle, reducer.rated_torque_Nm, where, found["angle"].name,
                      found["angle"].unit, found["torque"].name)
