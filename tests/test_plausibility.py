@@ -2,6 +2,7 @@
 a torque far past the rating), the decimal-comma hint, and errors that name their file."""
 
 import math
+import re
 import shutil
 import warnings
 from pathlib import Path
@@ -131,6 +132,34 @@ def test_catalog_reducers_are_inside_the_band():
     for rated, twist in ((167, 167 / 49 + 0.5), (67, 7.0), (100, 10.0), (380, 40.0), (3, 60.0)):
         low, high = twist_band_arcmin(rated)
         assert low <= twist <= high, (rated, twist)
+
+
+def test_a_resolution_declared_coarser_than_the_steps_is_caught(tmp_path):
+    """paper-large moves in steps of its declared 1″; declared as 3″ (as a datasheet's "repeatable
+    to three counts" might be read), the steps are finer than the resolution claims and the fit's
+    noise floor would be 3× the data's: one warning per hysteresis run. A step coarser than the
+    resolution (several counts at once) is not warned about below 20×."""
+    folder = tmp_path / "c"
+    shutil.copytree(DATA / "paper-large", folder)
+    path = folder / "campaign.toml"
+    text = path.read_text()
+    assert "encoder_resolution_arcsec = 1.0" in text
+    path.write_text(text.replace("encoder_resolution_arcsec = 1.0", "encoder_resolution_arcsec = 3.0"))
+    found = [m for m in plausibility_warnings(path) if "finer than" in m]
+    assert len(found) == 3 and "steps of 1 arcsec" in found[0] and "3×" in found[0], found
+    path.write_text(text.replace("encoder_resolution_arcsec = 1.0", "encoder_resolution_arcsec = 0.25"))
+    assert plausibility_warnings(path) == []
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="measured data ../shared/data/cycloidal-jv is absent")
+def test_the_readmes_rounded_resolution_on_a_measured_loop_is_caught(write_files):
+    """REAL measured loop: the data README's "about 0.016°" (57.6″) is three of the 19.78″
+    steps POSITION moves in."""
+    text = (EXAMPLES / "split-pccf-initial-pos1.toml").read_text().replace(
+        "../../../shared/data/cycloidal-jv", SHARED.as_posix())
+    text = re.sub(r"encoder_resolution_arcsec = [0-9.]+", "encoder_resolution_arcsec = 57.6", text)
+    found = plausibility_warnings(write_files({"campaign.toml": text}))
+    assert len(found) == 1 and "steps of 19.78 arcsec, finer than" in found[0], found
 
 
 def test_torque_in_Nmm_under_a_Nm_header_is_caught(tmp_path):

@@ -17,7 +17,10 @@ unusual unit is possible, a silent 60× is not acceptable). Thresholds and their
   are quantised).
 - **Encoder step**: angles that move in steps of a fixed size are quantised by the encoder; a
   step 20× coarser or finer than the declared ``encoder_resolution_arcsec`` is a unit slip
-  (60×, 3600×, 57.3× for rad/deg) or a wrong resolution.
+  (60×, 3600×, 57.3× for rad/deg) or a wrong resolution. A step more than 10 % finer than the
+  declared resolution is a resolution declared too coarse (an encoder does not step finer than
+  its resolution; a step coarser than it can be several counts at once): the fit's noise floor
+  would sit above the data's.
 - **Peak torque** above ``PEAK_TORQUE_LIMIT`` × the rated torque: no bench loads a reducer
   that far past its momentary rating (~2–5×); N·mm under a ``torque_Nm`` header gives 1000×.
 - **TE direction**: a forward run's output angle increases sample by sample, a backward one's
@@ -42,6 +45,9 @@ TWIST_MAX_ARCMIN = 600.0
 SOFT_LIMIT_NM = 20.0
 #: an observed encoder step this many times off the declared resolution is warned about
 STEP_RATIO_LIMIT = 20.0
+#: an observed encoder step this much finer than the declared resolution is warned about (a
+#: resolution declared as several steps: the measured loops' README gives 0.016°, three steps)
+FINER_STEP_LIMIT = 1.1
 #: a peak load this many times the rated torque is warned about
 PEAK_TORQUE_LIMIT = 10.0
 #: fraction of the extreme torque samples a loop's end points are read from
@@ -143,6 +149,14 @@ def check_encoder_step(angle_rad, resolution_arcsec: float | None, where: str, c
     if q is None:
         return
     ratio = q / ARCSEC / resolution_arcsec
+    if 1.0 / STEP_RATIO_LIMIT <= ratio < 1.0 / FINER_STEP_LIMIT:
+        # not a unit slip, but no encoder steps finer than its resolution: the fit's noise floor,
+        # resolution/√12, would hold the noise above what the data show
+        warn(f"{where}: column {column!r} moves in steps of {q / ARCSEC:.4g} arcsec, finer than the "
+             f"[instrument] encoder_resolution_arcsec = {resolution_arcsec:g} (an encoder does not step finer "
+             f"than its resolution); the fit's quantisation floor, resolution/√12, would be {1.0 / ratio:.3g}× the "
+             f"data's: declare the step the angle moves in")
+        return
     if 1.0 / STEP_RATIO_LIMIT <= ratio <= STEP_RATIO_LIMIT:
         return
     warn(f"{where}: column {column!r} moves in steps of {q / ARCSEC:.4g} arcsec, {ratio:.4g}× "
