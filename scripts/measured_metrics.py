@@ -19,10 +19,11 @@ from pathlib import Path
 import numpy as np
 
 import torsionfit  # noqa: F401
+from torsionfit import InputError
 from torsionfit.io import load_campaign
 from torsionfit.fit._prior import cycle_friction_Nm
 from torsionfit.metrics import campaign_metrics
-from torsionfit.metrics._hysteresis import grouped_cycles
+from torsionfit.metrics._hysteresis import CLASS_METRICS, grouped_cycles
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "cycloidal-jv"
@@ -79,7 +80,11 @@ def file_metrics(folder: str, stem: str, workdir: Path) -> dict:
     manifest.write_text(
         MANIFEST.format(folder=folder, stem=stem, credit=CREDIT, file=f'"{path.as_posix()}"'), encoding="utf-8"
     )
-    campaign = load_campaign(manifest)
+    try:
+        campaign = load_campaign(manifest)
+    except InputError as err:  # the reader's checks (e.g. a reversed angle): named in the table's notes
+        return {"name": stem, "kind": "hysteresis", "metrics": {}, "notes": {m: str(err) for m in CLASS_METRICS},
+                "friction_Nm": None}
     (run,) = campaign_metrics(campaign)["runs"]
     # friction read off the loops (half the width in torque at the mid angle) of the smallest
     # and the largest cycles: equal where friction does not depend on the cycle's amplitude
@@ -213,8 +218,8 @@ def markdown(rows: list[dict]) -> str:
 
             classes = re.search(r"amplitude classes in the run: ([^;)]*N·m)", m.get("play", {}).get("note", ""))
             fr = run["friction_Nm"]
-            friction = (f"{fr['smallest'][1]:.2f} (±{fr['smallest'][0]:.0f}) / "
-                        f"{fr['largest'][1]:.2f} (±{fr['largest'][0]:.0f})")
+            friction = "—" if fr is None else (f"{fr['smallest'][1]:.2f} (±{fr['smallest'][0]:.0f}) / "
+                                               f"{fr['largest'][1]:.2f} (±{fr['largest'][0]:.0f})")
             lines.append(
                 f"| {folder}/{state}-{pos} | {get('play', 1 / 60, '.3f')} | {get('compliance_loading_pos')} | "
                 f"{get('compliance_loading_neg')} | {get('stiffness_loading')} | {classes[1] if classes else '—'} | "

@@ -56,6 +56,7 @@ import jax.numpy as jnp
 import numpy as np
 
 import torsionfit  # noqa: F401
+from torsionfit import InputError
 from torsionfit.batch import executor
 from torsionfit.fit import NoiseOptions, model_inputs
 from torsionfit.fit._problem import cycle_amplitude_shape
@@ -119,7 +120,8 @@ def files_out_of_layout(data: Path | None = None) -> list[Path]:
 def not_validated(unit: str) -> str | None:
     """Why ``unit``'s file cannot be validated, in one line naming it (None: it can): the split
     reads the ``test_nr`` column and needs two large ramps (test_nr ≥ 100), the last to hold
-    out and one to fit the large cycles on."""
+    out and one to fit the large cycles on; the whole file must read (the manifest reader's
+    checks: a reversed angle stops there)."""
     path = _data_path(unit)
     try:
         large = [r for r in test_numbers(path) if r >= 100]
@@ -128,6 +130,13 @@ def not_validated(unit: str) -> str | None:
     if len(large) < 2:
         return (f"{path}: {len(large)} large ramp(s) (test_nr ≥ 100), expected at least 2: one to fit, the last to "
                 f"hold out")
+    # the reader's own checks (columns, units, an angle that falls as the torque rises): a file
+    # that stops there is named here, and the other units are validated
+    with tempfile.TemporaryDirectory() as folder:
+        try:
+            load_campaign(manifest(unit, None, Path(folder)))
+        except InputError as err:
+            return str(err)
     return None
 
 

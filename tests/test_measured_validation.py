@@ -86,6 +86,16 @@ def test_measured_files_without_an_example_manifest_are_validated_too(tmp_path, 
         "one to fit, the last to hold out")
     reason = mv.not_validated("split-pla-runin-pos5")
     assert reason.startswith(f"{tmp_path / 'data' / 'split-pla' / 'runin-pos5.csv'}: ") and "test_nr" in reason
+    # a bench that counts the angle the other way: named in one line, the others still validated
+    k = lines[0].split(",").index("POSITION")
+    rows = [ln.split(",") for ln in lines[1:]]
+    for row in rows:
+        row[k] = repr(-float(row[k]))
+    (tmp_path / "data" / "split-pla" / "preload1-pos1.csv").write_text(
+        "\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    reason = mv.not_validated("split-pla-preload1-pos1")
+    assert "\n" not in reason and "preload1-pos1.csv: column 'POSITION' falls as column 'TORQUE' rises" in reason
+    assert mv.not_validated("split-pla-initial-pos1") is None
 
 
 def test_a_configuration_without_the_authors_numbers_is_named_not_dropped():

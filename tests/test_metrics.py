@@ -850,6 +850,27 @@ def test_measured_play_ramps_alone_are_read_when_declared_partial_load(tmp_path)
 
 
 @needs_jv
+def test_a_measured_file_that_stops_at_reading_is_a_note_of_the_table(tmp_path, monkeypatch):
+    """A file the reader stops (here REAL split initial-pos1 with POSITION negated, a temporary
+    copy): its metrics are the reader's one line in the table's notes, the other files measured."""
+    import gzip
+
+    script = _measured_metrics_script()
+    lines = gzip.open(JV / "split-pccf" / "initial-pos1.csv.gz", "rt").read().splitlines()
+    k = lines[0].split(",").index("POSITION")
+    rows = [ln.split(",") for ln in lines[1:]]
+    for row in rows:
+        row[k] = repr(-float(row[k]))
+    (tmp_path / "data" / "split-pccf").mkdir(parents=True)
+    with gzip.open(tmp_path / "data" / "split-pccf" / "initial-pos1.csv.gz", "wt") as fh:
+        fh.write("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    monkeypatch.setattr(script, "DATA", tmp_path / "data")
+    run = script.file_metrics("split-pccf", "initial-pos1", tmp_path / "work")
+    assert run["metrics"] == {} and run["friction_Nm"] is None
+    assert "column 'POSITION' falls as column 'TORQUE' rises" in run["notes"]["play"]
+
+
+@needs_jv
 def test_measured_positions_are_the_files_found():
     script = _measured_metrics_script()
     assert script.positions("baseline-pccf", "initial") == ["pos1", "pos5", "pos6"]
