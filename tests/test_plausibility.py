@@ -248,6 +248,8 @@ def test_a_rigid_units_noise_never_reads_as_a_reversed_angle():
     check_twist_sign(t[:1000], torque[:1000], 0.1 * t[:1000], "f.csv", "angle", "torque")
     with pytest.raises(InputError, match="f.csv: column 'angle' falls"):
         check_twist_sign(t, torque, -0.1 * ARCMIN * torque + noise, "f.csv", "angle", "torque")
+    with pytest.raises(InputError, match="falls"):  # untimed: the drift in samples
+        check_twist_sign(None, torque, -0.1 * ARCMIN * torque + noise, "f.csv", "angle", "torque")
     with pytest.raises(InputError, match="falls"):  # loaded one way only
         check_twist_sign(t, np.abs(torque), -0.1 * ARCMIN * np.abs(torque) + noise, "f.csv", "angle", "torque")
 

@@ -47,7 +47,7 @@ def check_twist_sign(time_s, torque_Nm, angle_rad, where: str, angle_column: str
     tau, theta = np.asarray(torque_Nm, float), np.asarray(angle_rad, float)
     if tau.size < 20:
         return
-    t = np.asarray(time_s, float)
+    t = np.arange(tau.size, dtype=float) if time_s is None else np.asarray(time_s, float)  # untimed: in samples
     design = np.column_stack([tau, (t - t.mean()) / max(float(np.ptp(t)), 1e-12), np.ones_like(tau)])
     coef, *_ = np.linalg.lstsq(design, theta, rcond=None)
     lo, hi = np.percentile(tau, [0.5, 99.5])
