@@ -162,6 +162,16 @@ def test_the_readmes_rounded_resolution_on_a_measured_loop_is_caught(write_files
     assert len(found) == 1 and "steps of 19.78 arcsec, finer than" in found[0], found
 
 
+def test_an_input_angle_not_divided_by_the_ratio_is_named(tmp_path):
+    """paper-large (ratio 121, ~4.4 arcmin at rated) with its angle column written at the motor,
+    121× the output's: the twist warning names the input angle and the ratio as a reading that
+    fits (beside the units that would)."""
+    path = relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_arcmin", lambda v: repr(121.0 * float(v)))
+    twist = [m for m in plausibility_warnings(path) if "twists" in m]
+    assert len(twist) == 3
+    assert "if the column held the input angle, to be divided by [reducer] ratio = 121" in twist[0], twist[0]
+
+
 def test_torque_in_Nmm_under_a_Nm_header_is_caught(tmp_path):
     path = relabelled(tmp_path, "paper-large", "torque_Nm", "torque_Nm",
                       values=lambda cell: repr(float(cell) * 1000.0))

@@ -15,6 +15,8 @@ unusual unit is possible, a silent 60× is not acceptable). Thresholds and their
   an end: angles 60× too small for every unit twisting under 18 arcmin, 60× too large for a
   4.4 arcmin unit from ~100 N·m up (the encoder step check covers the rest when the angles
   are quantised).
+  The hint names each unit, and with ``[reducer] ratio`` the input (motor) angle not yet
+  divided by it, under which the twist would be plausible.
 - **Encoder step**: angles that move in steps of a fixed size are quantised by the encoder; a
   step 20× coarser or finer than the declared ``encoder_resolution_arcsec`` is a unit slip
   (60×, 3600×, 57.3× for rad/deg) or a wrong resolution. A step more than 10 % finer than the
@@ -94,9 +96,10 @@ def secant_compliance(torque_Nm: np.ndarray, angle_rad: np.ndarray) -> float | N
 
 
 def check_hysteresis(torque_Nm, angle_rad, rated_torque_Nm, where: str, angle_column: str,
-                     angle_unit: str, torque_column: str) -> None:
+                     angle_unit: str, torque_column: str, ratio: float | None = None) -> None:
     """Warn when the loop's twist at rated torque (or at its own peak, without a rating) or its
-    peak load is implausible for the rating."""
+    peak load is implausible for the rating; with the reducer's ``ratio``, the hint names an
+    input (motor) angle not divided by it."""
     reached = float(np.max(np.abs(torque_Nm)))
     if rated_torque_Nm is not None and reached > PEAK_TORQUE_LIMIT * rated_torque_Nm:
         warn(f"{where}: column {torque_column!r} reaches |torque| = {reached:.4g} N·m, "
@@ -104,7 +107,7 @@ def check_hysteresis(torque_Nm, angle_rad, rated_torque_Nm, where: str, angle_co
              f"(a bench stays below ~5×); is the torque unit right (N·mm read as N·m is 1000×)?")
     c = secant_compliance(torque_Nm, angle_rad)
     if c is None or c <= 0:
-        return  # a reversed sign is the metrics' error ("the angle does not grow with torque")
+        return  # a clearly reversed angle stopped the reader already (check_twist_sign)
     scale = rated_torque_Nm if rated_torque_Nm is not None else reached
     if rated_torque_Nm is not None:
         at, who = f"the rated torque {scale:.4g} N·m", "a reducer of that rating"
@@ -118,6 +121,10 @@ def check_hysteresis(torque_Nm, angle_rad, rated_torque_Nm, where: str, angle_co
     fits = [f"{twist * f / declared:.3g} arcmin if the column held {u}"
             for u, f in units.ANGLE_UNITS.items()
             if u != angle_unit and low <= twist * f / declared <= high]
+    if ratio and ratio > 1 and low <= twist / ratio <= high:
+        # the motor encoder's angle, not yet expressed at the output
+        fits.append(f"{twist / ratio:.3g} arcmin if the column held the input angle, to be divided by "
+                    f"[reducer] ratio = {ratio:g}")
     hint = f" ({'; '.join(fits)})" if fits else ""
     warn(f"{where}: column {angle_column!r} ({angle_unit}) twists {twist:.3g} arcmin at {at} "
          f"(secant stiffness {1.0 / (c / ARCMIN):.3g} N·m/arcmin); {who} "

@@ -128,7 +128,7 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
     check_twist_sign(time, torque, angle, where, found["angle"].name, found["torque"].name, spec.angle_sign)
     # after the errors: a warning is for data that read cleanly
     check_hysteresis(torque, angle, reducer.rated_torque_Nm, where, found["angle"].name,
-                     found["angle"].unit, found["torque"].name)
+                     found["angle"].unit, found["torque"].name, reducer.ratio)
     check_encoder_step(angle, spec.encoder_resolution_arcsec, where, found["angle"].name)
     conditioning = None
     if spec.condition:
