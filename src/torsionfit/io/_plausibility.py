@@ -72,25 +72,15 @@ def twist_band_arcmin(rated_torque_Nm: float) -> tuple[float, float]:
     return TWIST_MIN_ARCMIN, high
 
 
-def loop_ends(torque_Nm: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """(top, bottom): masks of the samples beyond 90 % of the extreme torques on the positive
-    and the negative side. None without a load both ways."""
-    tau = np.asarray(torque_Nm, float)
-    lo, hi = np.percentile(tau, [0.5, 99.5])
-    if not lo < 0 < hi:
-        return None
-    return tau >= _END_FRACTION * hi, tau <= _END_FRACTION * lo
-
-
 def secant_compliance(torque_Nm: np.ndarray, angle_rad: np.ndarray) -> float | None:
     """dθ/dτ (rad/N·m) between the loop's two ends: the median angle of the samples beyond
     90 % of the extreme torques on each side over the mean torque there. None without a load
     both ways (a one-sided run has no secant through zero)."""
     tau, theta = np.asarray(torque_Nm, float), np.asarray(angle_rad, float)
-    ends = loop_ends(tau)
-    if ends is None:
+    lo, hi = np.percentile(tau, [0.5, 99.5])
+    if not lo < 0 < hi:
         return None
-    top, bottom = ends
+    top, bottom = tau >= _END_FRACTION * hi, tau <= _END_FRACTION * lo
     d_tau = float(np.mean(tau[top]) - np.mean(tau[bottom]))
     return float(np.median(theta[top]) - np.median(theta[bottom])) / d_tau
 
