@@ -233,14 +233,49 @@ def test_angle_sign_declares_a_reversed_angle_and_contradicting_it_stops(tmp_pat
         load_campaign(wrong)
 
 
+@pytest.mark.parametrize("key", ["angle_sign", "torque_sign"])
 @pytest.mark.parametrize("value", ["2", "true", '"-1"', "0"])
-def test_angle_sign_other_than_plus_or_minus_one_is_one_line(tmp_path, value):
+def test_a_sign_other_than_plus_or_minus_one_is_one_line(tmp_path, key, value):
     folder = tmp_path / "c"
     shutil.copytree(DATA / "paper-large", folder)
     path = folder / "campaign.toml"
-    path.write_text(path.read_text().replace('kind = "hysteresis"', f'kind = "hysteresis"\nangle_sign = {value}', 1))
-    with pytest.raises(InputError, match=r"runs\[0\].*angle_sign must be 1 .* or -1"):
+    path.write_text(path.read_text().replace('kind = "hysteresis"', f'kind = "hysteresis"\n{key} = {value}', 1))
+    with pytest.raises(InputError, match=rf"runs\[0\].*{key} must be 1 .* or -1"):
         load_campaign(path)
+
+
+def _declared(path: Path, *keys: str) -> Path:
+    text = path.read_text()
+    assert text.count('kind = "hysteresis"') == 3
+    declared = "".join(f"\n{key} = -1" for key in keys)
+    path.write_text(text.replace('kind = "hysteresis"', 'kind = "hysteresis"' + declared))
+    return path
+
+
+def test_a_reversed_torque_stops_and_reads_with_torque_sign(tmp_path):
+    """A torque sensor counted the other way contradicts like a reversed angle; the message names
+    both keys, since only the bench's conventions tell which. ``torque_sign = -1`` gives the
+    original's torque; declaring both signs, or the sign on a file that needs none, stops."""
+    path = relabelled(tmp_path, "paper-large", "torque_Nm", "torque_Nm", _negate)
+    with pytest.raises(InputError) as err:
+        load_campaign(path)
+    message = str(err.value)
+    assert "\n" not in message and "column 'angle_arcmin' falls as column 'torque_Nm' rises" in message
+    assert "angle_sign = -1" in message and "torque_sign = -1" in message
+    flipped = load_campaign(_declared(path, "torque_sign"))
+    original = load_campaign(DATA / "paper-large" / "campaign.toml")
+    for a, b in zip(flipped.runs, original.runs):
+        if a.kind == "hysteresis":
+            np.testing.assert_allclose(a.torque_Nm, b.torque_Nm, atol=1e-12)
+            np.testing.assert_allclose(a.angle_rad, b.angle_rad, atol=1e-12)
+            assert any("torque_sign = -1" in note for note in a.notes)
+    both = relabelled(tmp_path / "both", "paper-large", "torque_Nm", "torque_Nm", _negate)
+    with pytest.raises(InputError, match=r"angle_sign = -1 and torque_sign = -1 cancel"):
+        load_campaign(_declared(both, "angle_sign", "torque_sign"))
+    wrong = tmp_path / "wrong" / "campaign.toml"
+    shutil.copytree(DATA / "paper-large", wrong.parent)
+    with pytest.raises(InputError, match=r"drop torque_sign = -1"):
+        load_campaign(_declared(wrong, "torque_sign"))
 
 
 def test_a_rigid_units_noise_never_reads_as_a_reversed_angle():
@@ -264,16 +299,13 @@ def test_a_rigid_units_noise_never_reads_as_a_reversed_angle():
         check_twist_sign(t, np.abs(torque), -0.1 * ARCMIN * np.abs(torque) + noise, "f.csv", "angle", "torque")
 
 
-@pytest.mark.skipif(not SHARED.is_dir(), reason="measured data ../shared/data/cycloidal-jv is absent")
-def test_a_measured_loop_with_its_angle_reversed_stops_and_reads_with_angle_sign(tmp_path):
-    """REAL measured loop (split initial-pos1), its POSITION negated in a temporary copy: it
-    stops; declared with angle_sign = -1 its play reads as the original file's."""
+def _measured_copy_negated(tmp_path, column: str) -> str:
+    """The REAL split initial-pos1 file copied to tmp_path/flip.csv with ``column`` negated, and its
+    example manifest pointed at it (written to flip.toml; its text returned)."""
     import gzip
 
-    from torsionfit.metrics import campaign_metrics
-
     lines = gzip.open(SHARED / "split-pccf" / "initial-pos1.csv.gz", "rt").read().splitlines()
-    k = lines[0].split(",").index("POSITION")
+    k = lines[0].split(",").index(column)
     rows = [line.split(",") for line in lines[1:]]
     for row in rows:
         row[k] = _negate(row[k])
@@ -281,12 +313,45 @@ def test_a_measured_loop_with_its_angle_reversed_stops_and_reads_with_angle_sign
     text = (EXAMPLES / "split-pccf-initial-pos1.toml").read_text()
     text = text.replace("../../../shared/data/cycloidal-jv/split-pccf/initial-pos1.csv.gz", "flip.csv")
     (tmp_path / "flip.toml").write_text(text)
+    return text
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="measured data ../shared/data/cycloidal-jv is absent")
+def test_a_measured_loop_with_its_angle_reversed_stops_and_reads_with_angle_sign(tmp_path):
+    """REAL measured loop (split initial-pos1), its POSITION negated in a temporary copy: it
+    stops; declared with angle_sign = -1 its play reads as the original file's."""
+    from torsionfit.metrics import campaign_metrics
+
+    text = _measured_copy_negated(tmp_path, "POSITION")
     with pytest.raises(InputError, match=r"flip.csv: column 'POSITION' falls as column 'TORQUE' rises"):
         load_campaign(tmp_path / "flip.toml")
     (tmp_path / "flip.toml").write_text(text.replace('kind = "hysteresis"', 'kind = "hysteresis"\nangle_sign = -1'))
     play = campaign_metrics(load_campaign(tmp_path / "flip.toml"))["runs"][0]["metrics"]["play"]["value"]
     original = campaign_metrics(load_campaign(EXAMPLES / "split-pccf-initial-pos1.toml"))["runs"][0]["metrics"]["play"]
     assert play == pytest.approx(original["value"], rel=1e-9) and play > 0
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="measured data ../shared/data/cycloidal-jv is absent")
+def test_a_measured_loop_with_its_torque_reversed_needs_torque_sign_not_angle_sign(tmp_path):
+    """REAL measured loop (split initial-pos1), its TORQUE negated in a temporary copy: it stops;
+    declared with torque_sign = -1 its per-side compliances are the original's, declared as a
+    reversed angle instead the loop reads mirrored, its + and − sides swapped."""
+    from torsionfit.metrics import campaign_metrics
+
+    text = _measured_copy_negated(tmp_path, "TORQUE")
+    with pytest.raises(InputError, match=r"flip.csv: column 'POSITION' falls as column 'TORQUE' rises.*torque_sign"):
+        load_campaign(tmp_path / "flip.toml")
+
+    def sides(declared: str) -> tuple[float, float]:
+        (tmp_path / "flip.toml").write_text(text.replace('kind = "hysteresis"', f'kind = "hysteresis"\n{declared} = -1'))
+        m = campaign_metrics(load_campaign(tmp_path / "flip.toml"))["runs"][0]["metrics"]
+        return m["compliance_loading_pos"]["value"], m["compliance_loading_neg"]["value"]
+
+    m = campaign_metrics(load_campaign(EXAMPLES / "split-pccf-initial-pos1.toml"))["runs"][0]["metrics"]
+    pos, neg = m["compliance_loading_pos"]["value"], m["compliance_loading_neg"]["value"]
+    assert abs(pos - neg) > 0.05 * pos  # the sides differ on this loop, so a swap shows
+    assert sides("torque_sign") == pytest.approx((pos, neg), rel=1e-9)
+    assert sides("angle_sign") == pytest.approx((neg, pos), rel=1e-6)
 
 
 # ----------------------------------------------------------------------------- TE direction

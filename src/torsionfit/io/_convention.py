@@ -1,9 +1,12 @@
 """Do the data move the way the declared sign conventions say?
 
 A hysteresis run's angle grows with its torque: positive torque twists the output forward
-(``angle_sign`` = -1 declares a bench that counts the angle the other way). A reversed angle
-reads cleanly and gives a loop run the wrong way round, a negative play and negative slopes, so
-a run whose angle clearly falls as the torque rises stops (:func:`check_twist_sign`).
+(``angle_sign`` = -1 declares a bench that counts the angle the other way, ``torque_sign`` = -1
+one that counts the torque the other way). A reversed angle or torque reads cleanly and gives a
+loop run the wrong way round, a negative play and negative slopes, so a run whose angle clearly
+falls as the torque rises stops (:func:`check_twist_sign`). Which of the two columns is reversed
+the data cannot tell (the loops differ only by their + and − sides swapped), so the message asks
+for a declaration.
 
 Loaded TE, below: does it move with the load the way the declared ``te_convention`` says?
 
@@ -37,8 +40,9 @@ CORRELATION_SAMPLES = 20
 
 
 def check_twist_sign(time_s, torque_Nm, angle_rad, where: str, angle_column: str, torque_column: str,
-                     angle_sign: int = 1) -> None:
-    """InputError naming the file's columns when a hysteresis run's angle (after ``angle_sign``)
+                     angle_sign: int = 1, torque_sign: int = 1) -> None:
+    """InputError naming the file's columns when a hysteresis run's angle (after ``angle_sign``
+    and ``torque_sign``)
     clearly falls as its torque rises: least squares of the angle on the torque, the time and a
     constant (a drift in time is not read as the load's), the torque's coefficient across the
     torque range (0.5–99.5 %) negative by more than :data:`SIGN_MARGIN` × the residual sd (the
@@ -56,8 +60,14 @@ def check_twist_sign(time_s, torque_Nm, angle_rad, where: str, angle_column: str
     spread = max(float(np.std(theta - design @ coef)), 0.01 * float(np.ptp(theta)))
     if not rise < -SIGN_MARGIN * spread:
         return
-    fix = ("drop angle_sign = -1: the angle read as it is grows with torque" if angle_sign == -1 else
-           "if the bench counts the angle the other way, declare angle_sign = -1 for this run")
+    declared = [key for key, sign in (("angle_sign", angle_sign), ("torque_sign", torque_sign)) if sign == -1]
+    if len(declared) == 1:
+        fix = f"drop {declared[0]} = -1: the columns read as they are agree"
+    elif declared:
+        fix = "angle_sign = -1 and torque_sign = -1 cancel: declare the one the bench counts the other way"
+    else:
+        fix = ("declare angle_sign = -1 for this run if the bench counts the angle the other way, torque_sign = -1 "
+               "if it counts the torque the other way (the data cannot tell which: the + and - sides swap)")
     raise InputError(
         f"{where}: column {angle_column!r} falls as column {torque_column!r} rises (by {-rise / ARCMIN:.4g} arcmin "
         f"over its {lo:.4g} to {hi:.4g} N·m, a drift in time apart); expected positive torque to twist the "

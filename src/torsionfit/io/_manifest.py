@@ -39,7 +39,8 @@ _INSTRUMENT_KEYS = (
 )
 _COMMON_RUN_KEYS = ("name", "kind", "file", "columns", "units", "select", "temperature_C")
 _RUN_KEYS = {
-    "hysteresis": _COMMON_RUN_KEYS + ("loading_rate_Nm_per_s", "peak_torque_Nm", "angle_sign", "condition"),
+    "hysteresis": _COMMON_RUN_KEYS + ("loading_rate_Nm_per_s", "peak_torque_Nm", "angle_sign", "torque_sign",
+                   "condition"),
     "transmission_error": _COMMON_RUN_KEYS
     + ("speed_rpm", "input_speed_rpm", "torque_Nm", "direction", "te_convention", "zero_group"),
 }
@@ -240,7 +241,8 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str, reducer: Reduce
             condition=_select(entry, where, "condition"),
             loading_rate_Nm_per_s=_number(entry, "loading_rate_Nm_per_s", where, positive=True),
             peak_torque_Nm=_peak(entry, where),
-            angle_sign=_angle_sign(entry, where),
+            angle_sign=_sign(entry, where, "angle_sign", "positive torque gives a larger angle", "angle"),
+            torque_sign=_sign(entry, where, "torque_sign", "positive torque twists the output forward", "torque"),
         )
     direction = _text(entry, "direction", where, required=True)
     if direction not in DIRECTIONS:
@@ -269,13 +271,13 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str, reducer: Reduce
     )
 
 
-def _angle_sign(entry: dict, where: str) -> int:
-    """``angle_sign``: 1 (default: positive torque twists the output forward, to a larger angle)
-    or -1 (the bench counts the angle the other way: the column is negated on reading)."""
-    value = entry.get("angle_sign", 1)
+def _sign(entry: dict, where: str, key: str, default_meaning: str, column: str) -> int:
+    """``angle_sign`` / ``torque_sign``: 1 (default: positive torque twists the output forward,
+    to a larger angle) or -1 (the bench counts that column the other way: negated on reading)."""
+    value = entry.get(key, 1)
     if isinstance(value, bool) or value not in (1, -1):
-        raise InputError(f"{where}: angle_sign must be 1 (positive torque gives a larger angle) or -1 (the bench "
-                         f"counts the angle the other way: the column is negated on reading), got {value!r}")
+        raise InputError(f"{where}: {key} must be 1 ({default_meaning}) or -1 (the bench counts the {column} the "
+                         f"other way: the column is negated on reading), got {value!r}")
     return int(value)
 
 

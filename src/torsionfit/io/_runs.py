@@ -38,6 +38,7 @@ class RunSpec:
     loading_rate_Nm_per_s: float | None = None
     peak_torque_Nm: float | str | None = None  # N·m, or "data": the run's own peak
     angle_sign: int = 1  # -1: the bench counts the angle the other way; negated on reading
+    torque_sign: int = 1  # -1: the bench counts the torque the other way; negated on reading
     # transmission error
     speed_rpm: float | None = None
     torque_Nm: float | None = None
@@ -97,6 +98,12 @@ def _check_time(time: np.ndarray, table: Table, column: str, where: str) -> None
 
 def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> HysteresisRun:
     torque = si("torque")
+    if spec.torque_sign == -1:
+        # a torque counted the other way puts each loop's + side where its - side was: only a
+        # declaration tells it from a reversed angle (both read as an angle falling with torque)
+        torque = -torque
+        notes.append(f"torque_sign = -1: column {found['torque'].name!r} negated on reading (positive torque twists "
+                     f"the output forward)")
     from_data = spec.peak_torque_Nm == PEAK_FROM_DATA
     peak_torque_Nm = None if from_data else spec.peak_torque_Nm
     if from_data:
@@ -125,7 +132,8 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
         angle = -angle
         notes.append(f"angle_sign = -1: column {found['angle'].name!r} negated on reading (positive torque twists "
                      f"the output forward)")
-    check_twist_sign(time, torque, angle, where, found["angle"].name, found["torque"].name, spec.angle_sign)
+    check_twist_sign(time, torque, angle, where, found["angle"].name, found["torque"].name, spec.angle_sign,
+                     spec.torque_sign)
     # after the errors: a warning is for data that read cleanly
     check_hysteresis(torque, angle, reducer.rated_torque_Nm, where, found["angle"].name,
                      found["angle"].unit, found["torque"].name, reducer.ratio)
