@@ -576,7 +576,7 @@ def test_bad_gzip_file(write_files, tmp_path):
 
 
 def _campaign_for_writing() -> Campaign:
-    t = np.repeat(np.arange(25) * 0.04, 2)
+    t = np.repeat(np.arange(25) * 8.0, 2)  # the sine ramps at about its declared 1 N·m/s
     torque = 50.0 * np.sin(np.linspace(0, 2 * np.pi, 50)) + 1e-7
     out = np.linspace(0, 4 * math.pi, 90)
     return Campaign(

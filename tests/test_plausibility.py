@@ -173,8 +173,15 @@ def test_an_input_angle_not_divided_by_the_ratio_is_named(tmp_path):
 
 
 def test_torque_in_Nmm_under_a_Nm_header_is_caught(tmp_path):
+    """Warned about by the peak load; with a loading rate declared, the ramps' rate contradicts
+    it and the run stops, naming the torque column with the time column."""
     path = relabelled(tmp_path, "paper-large", "torque_Nm", "torque_Nm",
                       values=lambda cell: repr(float(cell) * 1000.0))
+    with pytest.raises(InputError, match=r"column 'torque_Nm' ramps at .* 99\d\.\d× faster than the declared "
+                                         r"loading_rate_Nm_per_s .*column 'torque_Nm' \(read in Nm\)"):
+        load_campaign(path)
+    text = path.read_text()
+    path.write_text(re.sub(r"loading_rate_Nm_per_s = [0-9.]+\n", "", text))
     peak = [m for m in plausibility_warnings(path) if "reaches |torque|" in m]
     assert len(peak) == 3 and "column 'torque_Nm'" in peak[0] and "N·mm" in peak[0]
 

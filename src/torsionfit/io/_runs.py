@@ -12,6 +12,7 @@ from ._columns import resolve_columns
 from ._convention import check_twist_sign
 from ._plausibility import check_encoder_step, check_hysteresis, check_te_direction
 from ._read import Table, drop_trailing_pad, read_table, rows_passing, select_rows
+from ._time_scale import check_loading_rate, check_te_speed
 
 #: fewest samples a run may have after selection
 MIN_SAMPLES = 10
@@ -127,6 +128,9 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
             f"check the torque column and its unit, or set peak_torque_Nm for this run (its nominal peak in N·m, "
             f"or \"{PEAK_FROM_DATA}\" for the peak its cycles reach)"
         )
+    if time is not None:  # a hysteresis run always has one today; the check needs it
+        check_loading_rate(time, torque, spec.loading_rate_Nm_per_s, where, found["time"].name, found["time"].unit,
+                           found["torque"].name, found["torque"].unit)
     angle = si("angle")
     if spec.angle_sign == -1:
         angle = -angle
@@ -189,6 +193,10 @@ def _transmission_error(spec, reducer, si, time, found, where, notes) -> Transmi
             f"a transmission-error run must cover at least one output revolution (360°)"
         )
     check_te_direction(output, spec.direction, where, found["output_angle"].name)
+    if time is not None:
+        key = "speed_rpm" if spec.speed_rpm is not None else "input_speed_rpm / [reducer] ratio"
+        check_te_speed(time, output, speed, where, found["time"].name, found["time"].unit,
+                       found["output_angle"].name, found["output_angle"].unit, key)
     if time is None and spec.sample_rate_Hz is not None:
         time = np.arange(len(output)) / spec.sample_rate_Hz
         notes.append(f"time from [instrument] sample_rate_Hz = {spec.sample_rate_Hz:g} (no time column)")
