@@ -498,7 +498,7 @@ def test_campaign_metrics_json_shape_and_table():
         ("te-380Nm-bw", "transmission_error"),
     ]
     for run in result["runs"]:
-        assert set(run) == {"name", "kind", "metrics", "notes"}
+        assert set(run) == {"name", "kind", "metrics", "notes", "reading"}
         assert all(isinstance(n, str) for n in run["notes"].values())
         for entry in run["metrics"].values():
             assert type(entry["value"]) is float and math.isfinite(entry["value"])

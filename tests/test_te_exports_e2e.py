@@ -153,7 +153,9 @@ def test_fit_json_runs_name_the_temperatures(export):
     assert _runs_json(campaign, temperature_term=True)["reference_temperature_C"] == 32.5
     assert doc["runs"]["TE_486rpm_1000Nm_25C-bw"] == {
         "kind": "transmission_error", "temperature_C": 25.0, "torque_Nm": 1000.0, "speed_rpm": 6.0,
-        "direction": "backward", "zero_group": "TE_486rpm_1000Nm_25C"}
+        "direction": "backward", "zero_group": "TE_486rpm_1000Nm_25C",
+        "reading": list(next(r for r in campaign.runs if r.name == "TE_486rpm_1000Nm_25C-bw").notes)}
+    assert any("TE negated on reading" in n for n in doc["runs"]["TE_486rpm_1000Nm_25C-bw"]["reading"])
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,7 @@ from ._convention import check_twist_sign
 from ._plausibility import check_encoder_step, check_hysteresis, check_te_direction
 from ._read import Table, drop_trailing_pad, read_table, rows_passing, select_rows
 from ._time_scale import check_loading_rate, check_te_speed
+from ._wrap import unwrap_full_turns
 
 #: fewest samples a run may have after selection
 MIN_SAMPLES = 10
@@ -131,7 +132,10 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
     if time is not None:  # a hysteresis run always has one today; the check needs it
         check_loading_rate(time, torque, spec.loading_rate_Nm_per_s, where, found["time"].name, found["time"].unit,
                            found["torque"].name, found["torque"].unit)
-    angle = si("angle")
+    angle, wraps = unwrap_full_turns(si("angle"))
+    if wraps:
+        notes.append(f"column {found['angle'].name!r} wraps at a full turn {wraps} time(s) (an absolute encoder's "
+                     f"range): unwrapped on reading")
     if spec.angle_sign == -1:
         angle = -angle
         notes.append(f"angle_sign = -1: column {found['angle'].name!r} negated on reading (positive torque twists "

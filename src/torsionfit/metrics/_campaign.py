@@ -40,7 +40,8 @@ def campaign_metrics(
     """Catalog metrics of every run, as the `torsionfit metrics --json` document.
 
     Returns ``{"runs": [{"name", "kind", "metrics": {NAME: {"value", "unit"[, "note"]}},
-    "notes": {NAME: text}}]}`` in manifest order, plain floats and strings only
+    "notes": {NAME: text}, "reading": [text]}]}`` in manifest order (``reading``: the run's
+    reading notes — a column negated or unwrapped, a pad dropped), plain floats and strings only
     (JSON-serialisable). Every metric that can be computed is in ``metrics`` with a finite
     value; one that cannot is left out of ``metrics`` and its reason is in ``notes`` (so a
     consumer reading ``metrics[NAME]["value"]`` never meets a null).
@@ -68,17 +69,19 @@ def campaign_metrics(
                 metrics, notes = {}, {name: str(err) for name in TE_METRICS}
         else:  # pragma: no cover - the io layer only makes these two kinds
             continue
-        runs.append({"name": run.name, "kind": run.kind, "metrics": metrics, "notes": notes})
+        runs.append({"name": run.name, "kind": run.kind, "metrics": metrics, "notes": notes,
+                     "reading": list(run.notes)})
     return {"runs": runs}
 
 
 def format_metrics_table(result: dict) -> str:
     """A fixed-width terminal table of a :func:`campaign_metrics` result: one block per run,
-    one line per metric with its value and unit (the metrics' notes are in the JSON), then one
-    line per metric that could not be computed, with its reason."""
+    its reading notes (``read:``: a column negated or unwrapped, a pad dropped), one line per
+    metric with its value and unit (the metrics' notes are in the JSON), then one line per
+    metric that could not be computed, with its reason."""
     blocks = []
     for run in result["runs"]:
-        lines = [f"{run['name']} ({run['kind']})"]
+        lines = [f"{run['name']} ({run['kind']})"] + [f"  read: {note}" for note in run.get("reading", ())]
         notes = run.get("notes", {})
         width = max((len(name) for name in [*run["metrics"], *notes]), default=0)
         for name, entry in run["metrics"].items():

@@ -673,12 +673,13 @@ def fit_json(fit: CampaignFit, command: str | None = None) -> dict:
 
 def _runs_json(campaign, temperature_term: bool) -> dict:
     """The fitted runs' conditions: kind, temperature (°C: the manifest's ``temperature_C``,
-    else the median of the run's temperature column; None when neither is given) and, for TE
+    else the median of the run's temperature column; None when neither is given), the notes
+    of its reading (a column negated or unwrapped, a pad dropped) and, for TE
     runs, load, speed, direction and zero group; the distinct temperatures the fit spans; and,
     when the model has the temperature term, the reference temperature its metrics are at."""
     runs = {}
     for run in campaign.runs:
-        entry = {"kind": run.kind, "temperature_C": campaign.run_temperature_C(run)}
+        entry = {"kind": run.kind, "temperature_C": campaign.run_temperature_C(run), "reading": list(run.notes)}
         if run.kind == "transmission_error":
             entry |= {"torque_Nm": run.torque_Nm, "speed_rpm": run.speed_rpm,
                       "direction": "forward" if run.direction > 0 else "backward", "zero_group": run.zero_group}
