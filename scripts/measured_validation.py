@@ -32,7 +32,9 @@ For each file (one run: the small play ramps and the large stiffness ramps toget
    play weights ≥ 0 (the physically admissible Prandtl–Ishlinskii model: any break-away density).
 
 Per configuration (the three rotor positions averaged like the data's authors) ``play`` and
-the loading compliance are compared with the authors' numbers, read from the data's README.
+the loading compliance are compared with the authors' numbers, read from the data's README;
+the head of OUTPUT/validation.md is the README's table (:func:`summary_table`: per configuration
+the authors', the data's and the model's numbers, per position the held-out ratio and coverage).
 
     .venv/bin/python scripts/measured_validation.py -o docs/measured/validation [--units baseline-pccf-initial-pos1 ...]
 
@@ -596,6 +598,65 @@ def _config(unit: str) -> str:
     return unit.rsplit("-", 1)[0]
 
 
+def configuration_values(group: list[dict], authors: tuple | None) -> dict | None:
+    """A configuration's play (deg) and loading compliance (deg/N·m), its positions' rows
+    ``group`` averaged like the data's authors: theirs (``authors``: play, compliance +, −; None:
+    the README has none, and so is the result), the data's (``d_se``: the standard error of the
+    mean compliance, None where a file has too few branches) and the model's (mean, 95 % HDI;
+    None where a row has no model draws)."""
+    if not authors:
+        return None
+    ses = [compliance_se(r) for r in group]
+    out = {"a_play": authors[0], "a_comp": 0.5 * (authors[1] + authors[2]),
+           "d_play": float(np.mean([r["play_data_deg"] for r in group])),
+           "d_comp": float(np.mean([np.mean(r["compliance_data_deg_per_Nm"]) for r in group])),
+           # the positions' mean: independent files, so their standard errors add in quadrature
+           "d_se": float(np.sqrt(np.sum(np.square(ses)))) / len(ses) if all(v is not None for v in ses) else None,
+           "play_model": None, "compliance_model": None}
+    ok = [r for r in group if r.get("play_model_deg") and r.get("compliance_model_deg_per_Nm")]
+    if ok:
+        # the positions' mean, draw by draw: the units' posteriors are independent, so the
+        # k-th draws of each, averaged, are a draw of the mean
+        def of_mean(key):
+            n = min(len(r[key]["draws"]) for r in ok)
+            draws = np.mean([r[key]["draws"][:n] for r in ok], axis=0)
+            return float(np.mean(draws)), _hdi(draws)
+
+        out["play_model"], out["compliance_model"] = of_mean("play_model_deg"), of_mean("compliance_model_deg_per_Nm")
+    return out
+
+
+#: the head of the summary table, in validation.md and in the README's measured section
+SUMMARY_HEAD = "Per configuration (the README's table):"
+
+
+def summary_table(rows: list[dict]) -> str:
+    """The README's table: per configuration (positions averaged like the data's authors) the
+    authors', the data's and the model's play and loading compliance, and per position the
+    held-out RMSE over the Prandtl–Ishlinskii reference's and the 90 % interval's coverage."""
+    authors = authors_table()
+    lines = ["| configuration | play [°] authors / data / model (95 % HDI) | compliance [°/N·m] authors / data / model (95 % HDI) "
+             "| held-out RMSE ÷ reference, per position | 90 % interval coverage, per position |",
+             "| --- | --- | --- | --- | --- |"]
+    for config in dict.fromkeys(_config(r["unit"]) for r in sorted(rows, key=lambda r: r["unit"])):
+        group = sorted((r for r in rows if _config(r["unit"]) == config), key=lambda r: r["unit"])
+        v = configuration_values(group, authors.get(config))
+        if v is None:
+            play = compliance = "n/a (no authors' numbers)"
+        else:
+            model = v["play_model"]
+            play = f"{v['a_play']:.3f} / {v['d_play']:.3f} / " + (
+                f"{model[0]:.3f} ({model[1][0]:.3f}–{model[1][1]:.3f})" if model else "n/a")
+            model = v["compliance_model"]
+            compliance = f"{v['a_comp']:.4f} / {v['d_comp']:.4f} / " + (
+                f"{model[0]:.4f} ({model[1][0]:.4f}–{model[1][1]:.4f})" if model else "n/a")
+        ratio = ", ".join(f"{r['ratio_held_out']:.2f}" for r in group)
+        cover = ", ".join(f"{100 * r['coverage90_held_out']:.0f} %" for r in group)
+        positions = "/".join(r["unit"].rsplit("-", 1)[1] for r in group)
+        lines.append(f"| {config} ({positions}) | {play} | {compliance} | {ratio} | {cover} |")
+    return "\n".join(lines)
+
+
 #: the likelihood's noise, as the table's header names it
 NOISE_TEXT = {
     "iid": "iid noise with the posterior widened for structure the residuals keep",
@@ -690,6 +751,12 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
         "± s.e. = the standard error of the data's loading compliance from the scatter of its large branches' compliances, branch by branch "
         "(torsionfit.metrics.loading_compliance_cycles: the bench's cycle-to-cycle repeatability).",
         "",
+        SUMMARY_HEAD,
+        "",
+        *summary_table(rows).splitlines(),
+        "",
+        "Per loop:",
+        "",
         "| unit | in-sample RMSE | held-out RMSE | held-out RMSE (MAP) | reference held-out | ratio | physical PI held-out | PI + gap lag held-out (s) | earlier ramps held-out | 90 % PI coverage | play data (deg) | play model (deg, 95 % HDI) | compliance data (deg/N·m, ± s.e.) | compliance model (deg/N·m, 95 % HDI) | widened × | converged |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | --- | ---: | --- |",
     ]
@@ -769,28 +836,14 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
               "| --- | ---: | ---: | --- | ---: | ---: | ---: | --- | --- | --- | --- |"]
     checks, gaps, missing = [], [], []
     for config in dict.fromkeys(_config(r["unit"]) for r in rows):
-        group = [r for r in rows if _config(r["unit"]) == config]
-        a = authors.get(config)
-        if not a:
+        v = configuration_values([r for r in rows if _config(r["unit"]) == config], authors.get(config))
+        if v is None:
             missing.append(config)
             continue
-        a_play, a_comp = a[0], 0.5 * (a[1] + a[2])
-        d_play = np.mean([r["play_data_deg"] for r in group])
-        d_comp = np.mean([np.mean(r["compliance_data_deg_per_Nm"]) for r in group])
-        ses = [compliance_se(r) for r in group]
-        # the positions' mean: independent files, so their standard errors add in quadrature
-        d_se = float(np.sqrt(np.sum(np.square(ses)))) / len(ses) if all(v is not None for v in ses) else None
-        ok = [r for r in group if r.get("play_model_deg") and r.get("compliance_model_deg_per_Nm")]
+        a_play, a_comp, d_play, d_comp, d_se = v["a_play"], v["a_comp"], v["d_play"], v["d_comp"], v["d_se"]
+        ok = v["play_model"] is not None
         if ok:
-            # the positions' mean, draw by draw: the units' posteriors are independent, so the
-            # k-th draws of each, averaged, are a draw of the mean
-            def of_mean(key):
-                n = min(len(r[key]["draws"]) for r in ok)
-                draws = np.mean([r[key]["draws"][:n] for r in ok], axis=0)
-                return float(np.mean(draws)), _hdi(draws)
-
-            pm, ph = of_mean("play_model_deg")
-            cm, ch = of_mean("compliance_model_deg_per_Nm")
+            (pm, ph), (cm, ch) = v["play_model"], v["compliance_model"]
             model_p = f"{pm:.3f} ({ph[0]:.3f}–{ph[1]:.3f})"
             model_c = f"{cm:.4f} ({ch[0]:.4f}–{ch[1]:.4f})"
             in_p, in_c = ph[0] <= a_play <= ph[1], ch[0] <= a_comp <= ch[1]

@@ -447,3 +447,16 @@ def test_aligning_the_play_crossings_moves_the_play_ramps_torque_alone(tmp_path)
     c0, c1 = class_crossings(before), class_crossings(after)
     assert c1["play_data"]["rising_Nm"] - c0["play_data"]["rising_Nm"] == pytest.approx(shift, abs=0.3)
     assert c1["large_data"] == c0["large_data"]
+
+
+def test_the_readme_shows_the_committed_validations_summary_table():
+    """The README's measured table is the one the committed validation run wrote
+    (validation.md's summary block), and that block is what the run's json gives now."""
+    md = (ROOT / "docs" / "measured" / "validation" / "validation.md").read_text()
+    block = md.split(mv.SUMMARY_HEAD + "\n\n", 1)[1].split("\n\n", 1)[0]
+    assert block.count("\n") == 2 + 6 and block in (ROOT / "README.md").read_text()
+    doc = json.loads((ROOT / "docs" / "measured" / "validation" / "validation.json").read_text())
+    assert mv.summary_table(doc["units"]) == block
+    # a configuration without the authors' numbers keeps its row, saying so
+    rows = [dict(r, unit=r["unit"].replace("split-pccf", "split-pla")) if "preload3" in r["unit"] else r for r in doc["units"]]
+    assert "| split-pla-preload3 (pos1/pos5/pos6) | n/a (no authors' numbers) |" in mv.summary_table(rows)
