@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT ?= out
 
-.PHONY: run test bench bench-fit clean
+.PHONY: run test test-extended bench bench-fit clean
 $(BIN)/.installed: pyproject.toml
 	@test -n "$(PY)" || { echo "no Python >= 3.12 found (see scripts/find-python.sh)"; exit 1; }
 	$(PY) -m venv $(VENV)
@@ -28,6 +28,10 @@ test: $(BIN)/.installed
 	pool=$$?; wait $$nuts; nuts_rc=$$?; \
 	echo "--- tests/test_batch_sampler.py and tests/test_nuts.py (run beside the pool):"; cat $$log; rm -f $$log; \
 	test $$pool -eq 0 && test $$nuts_rc -eq 0
+
+# the long trails and end-to-end runs `make test` leaves out for its time (marker `extended`)
+test-extended: $(BIN)/.installed
+	TORSIONFIT_EXTENDED_TESTS=1 $(BIN)/python -m pytest -q -n 2 --dist loadfile -m extended --durations=20
 
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/bench_hysteresis_scan.py

@@ -386,6 +386,7 @@ def ripple_case(folder: Path) -> Case:
     return Case(campaign, 5, ripple, ripple["encoder_ripple"])
 
 
+@pytest.mark.extended
 def test_encoder_ripple_is_reported_unexplained(tmp_path):
     """A sub-division error of the output encoder, periodic in the measured angle: no catalog
     effect explains it, so nothing may be added and the leftover must be described."""

@@ -327,6 +327,7 @@ def test_the_validation_draws_from_the_split_normal_and_the_gaussian_on_request(
 
 @pytest.mark.slow
 @pytest.mark.runtime_bound
+@pytest.mark.extended
 def test_a_friction_level_lagging_the_load_predicts_a_held_out_ramp_better(tmp_path):
     """REAL data (split reassembled-pos5): fitted without its last large ramp, the MAP with the
     friction level following the load through a lag predicts that ramp better than the MAP

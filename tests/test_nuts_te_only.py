@@ -20,6 +20,7 @@ BENCHES = Path(__file__).parent / "benches"
 
 
 @pytest.mark.slow
+@pytest.mark.extended
 def test_nuts_follows_the_lost_motion_ridge_of_a_te_export(tmp_path):
     """The SYNTHETIC TE export campaign (tests/benches/te_export.toml, block means of 8): gap
     and friction only show together there. With the lost-motion coordinates and starts drawn

@@ -158,6 +158,7 @@ def _as_te_export(source: Path, target: Path) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.extended
 def test_paper_command_end_to_end_quick_on_te_bench_exports(tmp_path):
     """``torsionfit paper --quick --data`` on the bundled campaigns with their TE runs written
     the way a TE bench exports them (degrees, lag-negative, no time column, motor speed, a NaN

@@ -228,6 +228,7 @@ def test_accept_decides_the_declared_export(export, declared_fit, tmp_path, caps
 
 
 @pytest.mark.slow
+@pytest.mark.extended
 def test_diagnose_adds_the_kinematic_error_and_closes_to_the_noise(export):
     """Undeclared kinematic error in the declared export: diagnose adds it (orders 1, 2, 39
     among those it keeps) and the residual comes down to the noise (0.4″ on a 1″ encoder)."""
