@@ -174,6 +174,7 @@ def crash_on_unit_named_crash(packet, options):
     return fit_group(packet, options)
 
 
+@pytest.mark.extended
 def test_a_worker_process_that_dies_costs_only_its_unit(line, tmp_path, monkeypatch):
     """The pool breaks; the units it may have been fitting are redone one at a time in a process
     of their own, the one that kills it again gets an error row, the others are done."""
@@ -199,6 +200,7 @@ def crash_on_every_unit(packet, options):
     os._exit(3)
 
 
+@pytest.mark.extended
 def test_worker_processes_that_never_work_end_the_batch_with_one_line(line, tmp_path, monkeypatch):
     """Every unit kills its process (as when a worker cannot start): after STARTUP_DEATHS units
     alone, with no unit ever back, the batch stops with one line instead of trying every unit."""

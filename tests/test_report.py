@@ -237,6 +237,7 @@ def test_widened_gaussian_laplace_fit_measures_its_half_axes(laplace_fit):
 
     sim, fit = laplace_fit
     assert fit.diagnostics["laplace_scale_range"] is None and "laplace_note" not in fit.diagnostics
+    assert "laplace_pareto_k" not in fit.diagnostics  # nothing measured, nothing to check against
     problem, map_result = widened(fit.problem, fit.map_result, 50.0)
     options = FitOptions(sampler="laplace", n_starts=2)
     with warnings.catch_warnings():
@@ -248,6 +249,8 @@ def test_widened_gaussian_laplace_fit_measures_its_half_axes(laplace_fit):
     physics = np.linalg.norm(measured.axes[:n], axis=0) > np.sqrt(0.5)
     far = np.any((measured.scales[physics] < 0.5) | (measured.scales[physics] > 2.0))
     assert ("laplace_note" in wide.diagnostics) == bool(far)
+    k = wide.diagnostics["laplace_pareto_k"]  # the Gaussian's draws against the widened posterior
+    assert np.isfinite(k) and ("laplace_pareto_k_note" in wide.diagnostics) == (k > 0.7)
 
 
 def test_fit_command_laplace_split(tmp_path, noisy_bench, capsys):
@@ -259,6 +262,8 @@ def test_fit_command_laplace_split(tmp_path, noisy_bench, capsys):
     assert diag["sampler"] == "laplace" and diag["laplace_shape"] == "split"
     lo, hi = diag["laplace_scale_range"]
     assert 0 < lo <= hi
+    # a near-Gaussian posterior (a clean bench): the split normal's draws stand for it
+    assert diag["laplace_pareto_k"] <= 0.7 and "laplace_pareto_k_note" not in diag, diag["laplace_pareto_k"]
 
 
 @pytest.mark.parametrize("flag, fragment", [

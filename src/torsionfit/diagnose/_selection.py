@@ -178,8 +178,9 @@ def psis_loo(problem, map_result, draws: int, seed: int):
     zero and get no weight; with fewer than half the draws left the result is None."""
     from arviz_base import from_dict
     from arviz_stats import loo_approximate_posterior
-    from arviz_stats.base import array_stats
     from scipy.stats import multivariate_normal
+
+    from ..sample import importance_pareto_k
 
     good_k = float(min(1.0 - 1.0 / np.log10(draws), 0.7))
     rng = np.random.default_rng(seed)
@@ -193,7 +194,7 @@ def psis_loo(problem, map_result, draws: int, seed: int):
     log_q = np.asarray(multivariate_normal(mean=map_result.u, cov=cov, allow_singular=True).logpdf(u))
     # the approximation itself first: when the posterior/Laplace ratios have a bad Pareto k the
     # draws do not stand for the posterior, and no observation's k can be good
-    _, k_q = array_stats.psislw(log_p - log_q)
+    k_q = importance_pareto_k(log_p, log_q)
     if not float(k_q) <= good_k:
         k_text = f"{float(k_q):.2g}" if np.isfinite(k_q) else "undefined"
         return None, None, good_k, (f"the Laplace draws do not represent the posterior (Pareto k of the "

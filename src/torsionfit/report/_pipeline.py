@@ -459,6 +459,38 @@ def laplace_approximation(problem, map_result, shape: str):
     return split_normal(log_density, centre, map_result.cov)
 
 
+@in_float64
+def approximation_pareto_k(problem, map_result, approximation, draws_u) -> float:
+    """Pareto k̂ of the posterior/approximation density ratios at ``draws_u``, drawn from
+    ``approximation`` (a split normal) or, when None, from the Gaussian N(MAP, cov)
+    (:func:`~torsionfit.sample.importance_pareto_k`)."""
+    from ..sample import importance_pareto_k
+    from ..sample._emcee import _LogProb
+    from ..sample._laplace import _gaussian_log_density
+
+    draws_u = np.asarray(draws_u, float)
+    log_p = _LogProb(problem, batch=256)(draws_u)
+    if approximation is not None:
+        log_q = approximation.log_density(draws_u)
+    else:
+        log_q = _gaussian_log_density(draws_u, np.asarray(map_result.u, float), np.asarray(map_result.cov, float))
+    return importance_pareto_k(log_p, log_q)
+
+
+def pareto_k_note(k: float, n_draws: int) -> str:
+    """A line when the Laplace draws do not stand for the posterior (k̂ above the PSIS
+    threshold for ``n_draws``, or not defined); empty otherwise."""
+    from ..sample import good_k
+
+    limit = good_k(n_draws)
+    if k <= limit:
+        return ""
+    k_text = f"{k:.2f}" if np.isfinite(k) else "undefined"
+    return (f"the draws do not stand for the posterior: Pareto k of the posterior/approximation density ratios at them "
+            f"{k_text}, above {limit:.2f} (the posterior has mass where the approximation has little); the intervals are "
+            "the approximation's — emcee or NUTS (--sampler) sample the posterior itself")
+
+
 @eqx.filter_jit
 def _tempered_mode(problem, u):
     """The mode of ``problem``'s log density (a widened one) by BFGS from ``u``."""
@@ -535,6 +567,15 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
             "reason": "" if map_result.converged else f"MAP did not converge: {map_result.message}",
         }
         pick = rng.choice(len(draws_u), size=min(options.metric_draws, len(draws_u)), replace=False)
+        if measured is not None:
+            # where the posterior's shape was measured (widened, or split drawn): do the draws stand
+            # for it? The same compiled log density as the measurement's, at the metrics' draws
+            k = approximation_pareto_k(problem, map_result, approximation, draws_u[pick])
+            diagnostics["laplace_pareto_k"] = k
+            k_note = pareto_k_note(k, len(pick))
+            if k_note:
+                diagnostics["laplace_pareto_k_note"] = k_note
+                warnings.warn(k_note)
         note = laplace_note(measured, options.laplace_shape, problem.n_nonlinear)
         if note:
             diagnostics["laplace_note"] = note
@@ -743,6 +784,8 @@ def summary_table(doc: dict) -> str:
         lines.append(f"conditioning (out of the likelihood, in the RMSE): {shown} samples")
     if d.get("laplace_note"):
         lines.append(f"laplace: {d['laplace_note']}")
+    if d.get("laplace_pareto_k_note"):
+        lines.append(f"laplace: {d['laplace_pareto_k_note']}")
     if d.get("metrics_off_data_note"):
         lines.append(f"off the data: {d['metrics_off_data_note']}")
     for key in ("friction_hook_note", "gap_segment_note"):
