@@ -552,6 +552,27 @@ def _converged(row: dict) -> str:
     return f"{d['converged']}" + (f" (MAP {step:.2g} sd short)" if not d["converged"] and step is not None else "")
 
 
+def _pareto_k(row: dict) -> str:
+    """The Pareto k of the posterior/approximation ratios at the fit's Laplace draws (n/a: a row
+    written before the fit read it, or a sampler's)."""
+    k = row["diagnostics"].get("laplace_pareto_k")
+    return "n/a" if k is None else f"{k:.2f}"
+
+
+def pareto_k_text(rows: list[dict]) -> str:
+    """A sentence on whether the Laplace draws stand for the widened posterior; empty when no row
+    has the k."""
+    ks = np.array([r["diagnostics"]["laplace_pareto_k"] for r in rows if r["diagnostics"].get("laplace_pareto_k") is not None])
+    if not ks.size:
+        return ""
+    good = int(np.sum(ks <= 0.7))
+    return (f"The Laplace draws stand for the widened posterior (Pareto k of the posterior/approximation density ratios at "
+            f"them ≤ 0.7) on {good} of {ks.size} loops (k {np.nanmin(ks):.2f}–{np.nanmax(ks):.2f}, median {np.nanmedian(ks):.2f}): "
+            + ("where it is above, the intervals — the predictive interval's parameter part, the model's play and compliance — "
+               "are the split normal's, not the posterior's, and `torsionfit fit` says so (`laplace_pareto_k_note`)."
+               if good < ks.size else "their intervals are the posterior's."))
+
+
 def _short_text(rows: list[dict]) -> str:
     """The summary's note on MAPs that stopped short (rows fitted since the fit records it)."""
     short = [(r["unit"], r["diagnostics"]["map_newton_step_sd"]) for r in rows
@@ -748,6 +769,7 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
         "earlier ramps = no model: the held-out ramp predicted by the earlier large ramps' own twist at the same torque on the same branch "
         "(benchmarks/repeat_reference.py), whose error is the loop's ramp-to-ramp walk; "
         "widened × = the posterior covariance factor for structure the residuals keep (long-run variance ratio, 1 = not widened); "
+        "k = the Pareto k of the posterior/approximation density ratios at the Laplace draws (≤ 0.7: they stand for the posterior); "
         "± s.e. = the standard error of the data's loading compliance from the scatter of its large branches' compliances, branch by branch "
         "(torsionfit.metrics.loading_compliance_cycles: the bench's cycle-to-cycle repeatability).",
         "",
@@ -757,8 +779,8 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
         "",
         "Per loop:",
         "",
-        "| unit | in-sample RMSE | held-out RMSE | held-out RMSE (MAP) | reference held-out | ratio | physical PI held-out | PI + gap lag held-out (s) | earlier ramps held-out | 90 % PI coverage | play data (deg) | play model (deg, 95 % HDI) | compliance data (deg/N·m, ± s.e.) | compliance model (deg/N·m, 95 % HDI) | widened × | converged |",
-        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | --- | ---: | --- |",
+        "| unit | in-sample RMSE | held-out RMSE | held-out RMSE (MAP) | reference held-out | ratio | physical PI held-out | PI + gap lag held-out (s) | earlier ramps held-out | 90 % PI coverage | play data (deg) | play model (deg, 95 % HDI) | compliance data (deg/N·m, ± s.e.) | compliance model (deg/N·m, 95 % HDI) | widened × | k | converged |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | --- | ---: | ---: | --- |",
     ]
     for r in rows:
         pm, cm = r.get("play_model_deg"), r.get("compliance_model_deg_per_Nm")
@@ -769,7 +791,7 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
         cd_s = f"{cd:.4f}" + (f" ± {se:.4f}" if se is not None else "")
         lines.append(
             f"| {r['unit']} | {r['rmse_in_sample_arcsec']:.0f} | {r['rmse_held_out_arcsec']:.0f} | {_map_rmse(r)} | {r['reference']['oos_rest']:.0f} | "
-            f"{r['ratio_held_out']:.2f} | {_physical(r)} | {_lagged(r)} | {_repeat(r)} | {100 * r['coverage90_held_out']:.0f} % | {r['play_data_deg']:.3f} | {pm_s} | {cd_s} | {cm_s} | {r.get('misfit_inflation', 1.0):.1f} | {_converged(r)} |"
+            f"{r['ratio_held_out']:.2f} | {_physical(r)} | {_lagged(r)} | {_repeat(r)} | {100 * r['coverage90_held_out']:.0f} % | {r['play_data_deg']:.3f} | {pm_s} | {cd_s} | {cm_s} | {r.get('misfit_inflation', 1.0):.1f} | {_pareto_k(r)} | {_converged(r)} |"
         )
     ratios = np.array([r["ratio_held_out"] for r in rows])
     cover = np.array([r["coverage90_held_out"] for r in rows])
@@ -778,6 +800,8 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
               f"90 % predictive interval covering 80–95 % of the held-out ramp on {int(np.sum((cover >= 0.8) & (cover <= 0.95)))} of {len(rows)} "
               f"(median {100 * np.median(cover):.0f} %, range {100 * cover.min():.0f}–{100 * cover.max():.0f} %); "
               f"converged on {sum(bool(r['diagnostics']['converged']) for r in rows)} of {len(rows)}{_short_text(rows)}."]
+    if pareto_k_text(rows):
+        lines += ["", pareto_k_text(rows)]
     with_c = [r for r in rows if r.get("compliance_model_deg_per_Nm")]
     if with_c:
         own = [r for r in with_c if r["compliance_model_deg_per_Nm"]["hdi95"][0] <= np.mean(r["compliance_data_deg_per_Nm"])

@@ -237,6 +237,7 @@ def test_unreachable_scheduler_is_one_line_input_error():
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="CPU affinity is Linux-only")
+@pytest.mark.extended
 def test_worker_processes_are_pinned_one_cpu_each():
     """JAX sizes its thread pool by the CPUs a process may use: each worker gets one, round robin."""
     from torsionfit.batch._executor import worker_cpus

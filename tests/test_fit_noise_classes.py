@@ -170,6 +170,7 @@ def _class_fit(campaign, first: bool):
     return float(result.values["stiffness"]), class_shares(problem)
 
 
+@pytest.mark.extended
 def test_a_first_excursion_the_model_cannot_draw_is_weighed_down_and_never_up():
     """SYNTHETIC friction bench with three cycles per run (a first excursion, two repeats), its
     first excursions given 20″ more twist at the peak: as repeats they pull the fitted stiffness

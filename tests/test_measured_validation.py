@@ -461,3 +461,18 @@ def test_the_readme_shows_the_committed_validations_summary_table():
     # a configuration without the authors' numbers keeps its row, saying so
     rows = [dict(r, unit=r["unit"].replace("split-pccf", "split-pla")) if "preload3" in r["unit"] else r for r in doc["units"]]
     assert "| split-pla-preload3 (pos1/pos5/pos6) | n/a (no authors' numbers) |" in mv.summary_table(rows)
+
+
+def test_the_table_says_whether_the_laplace_draws_stand_for_the_posterior():
+    """Each row's Pareto k of the posterior/approximation ratios (the fit's
+    diagnostics.laplace_pareto_k) is a column, and a sentence counts the loops where the draws
+    stand for the widened posterior; rows written before the fit read it show n/a."""
+    doc = json.loads((ROOT / "docs" / "measured" / "validation" / "validation.json").read_text())
+    rows = doc["units"]
+    assert all("laplace_pareto_k" in r["diagnostics"] for r in rows)  # the committed run read it
+    text = mv.markdown(rows, doc["decimate"], doc["sampler"], doc["effects"], doc["noise"], doc["laplace_shape"])
+    ks = [r["diagnostics"]["laplace_pareto_k"] for r in rows]
+    assert f"on {sum(k <= 0.7 for k in ks)} of {len(rows)} loops" in mv.pareto_k_text(rows) in text
+    assert f"| {ks[0]:.2f} | {rows[0]['diagnostics']['converged']} |" in text
+    old = [dict(r, diagnostics={k: v for k, v in r["diagnostics"].items() if k != "laplace_pareto_k"}) for r in rows]
+    assert mv.pareto_k_text(old) == "" and "| n/a | True |" in mv.markdown(old, 16, "laplace", mv.EFFECTS, "iid")

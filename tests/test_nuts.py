@@ -487,6 +487,7 @@ def test_nuts_recovers_the_truth_on_bench_campaigns():
 
 
 @pytest.mark.slow
+@pytest.mark.extended
 def test_nuts_agrees_with_emcee_where_both_converge(small_nuts_fit):
     """MAP → Laplace start → emcee to convergence, and NUTS, on the small SYNTHETIC campaign.
     emcee: the posterior of the physics is centred on the MAP and about as wide as the Laplace
