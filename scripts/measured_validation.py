@@ -800,8 +800,9 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
               f"90 % predictive interval covering 80–95 % of the held-out ramp on {int(np.sum((cover >= 0.8) & (cover <= 0.95)))} of {len(rows)} "
               f"(median {100 * np.median(cover):.0f} %, range {100 * cover.min():.0f}–{100 * cover.max():.0f} %); "
               f"converged on {sum(bool(r['diagnostics']['converged']) for r in rows)} of {len(rows)}{_short_text(rows)}."]
-    if pareto_k_text(rows):
-        lines += ["", pareto_k_text(rows)]
+    k_text = pareto_k_text(rows)
+    if k_text:
+        lines += ["", k_text]
     with_c = [r for r in rows if r.get("compliance_model_deg_per_Nm")]
     if with_c:
         own = [r for r in with_c if r["compliance_model_deg_per_Nm"]["hdi95"][0] <= np.mean(r["compliance_data_deg_per_Nm"])

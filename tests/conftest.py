@@ -136,7 +136,7 @@ LONGEST_FILES = (
 
 #: ``extended`` tests run only when asked (``make test-extended``): the suite's 15-minute budget
 #: on the 2-core machine. Each is a long trail or end-to-end run whose capability a shorter test
-#: of ``make test`` also covers (the marker's docstring in each says which).
+#: of ``make test`` also covers (docs/statistics.md lists them and says which).
 RUN_EXTENDED = os.environ.get("TORSIONFIT_EXTENDED_TESTS") == "1"
 _EXTENDED_SKIP = pytest.mark.skip(reason="extended test, left out of `make test` for the suite's time: `make test-extended` "
                                         "(TORSIONFIT_EXTENDED_TESTS=1) runs it")

@@ -180,9 +180,9 @@ def psis_loo(problem, map_result, draws: int, seed: int):
     from arviz_stats import loo_approximate_posterior
     from scipy.stats import multivariate_normal
 
-    from ..sample import importance_pareto_k
+    from ..sample import good_k as good_k_for, importance_pareto_k
 
-    good_k = float(min(1.0 - 1.0 / np.log10(draws), 0.7))
+    good_k = good_k_for(draws)
     rng = np.random.default_rng(seed)
     cov = 0.5 * (map_result.cov + map_result.cov.T)
     u = rng.multivariate_normal(map_result.u, cov, size=draws, method="eigh")

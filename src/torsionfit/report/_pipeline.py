@@ -433,6 +433,9 @@ def _laplace_tree(problem, map_result, draws_u, names, specs, metric_draws, camp
 
 
 LAPLACE_SHAPES = ("gaussian", "split")
+#: draws per call of the batched log density that measures the split normal and checks the
+#: draws against the posterior: one batch shape, one compiled program for both
+LOG_DENSITY_BATCH = 256
 
 
 @in_float64
@@ -447,7 +450,7 @@ def laplace_approximation(problem, map_result, shape: str):
     from ..sample import split_normal
     from ..sample._emcee import _LogProb
 
-    log_density = _LogProb(problem, batch=256)
+    log_density = _LogProb(problem, batch=LOG_DENSITY_BATCH)
     centre = np.asarray(map_result.u, float)
     if problem.likelihood_power < 1.0:
         # a widened posterior's mode is not the MAP: with the likelihood tempered the prior weighs
@@ -469,7 +472,7 @@ def approximation_pareto_k(problem, map_result, approximation, draws_u) -> float
     from ..sample._laplace import _gaussian_log_density
 
     draws_u = np.asarray(draws_u, float)
-    log_p = _LogProb(problem, batch=256)(draws_u)
+    log_p = _LogProb(problem, batch=LOG_DENSITY_BATCH)(draws_u)
     if approximation is not None:
         log_q = approximation.log_density(draws_u)
     else:
