@@ -148,7 +148,7 @@ def page(rows: list, total_s: float, options: DiagnoseOptions) -> str:
         "# The undeclared-effect zoo (SYNTHETIC)",
         "",
         f"Produced by `.venv/bin/python scripts/diagnose_zoo.py` on {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC "
-        f"({os.cpu_count()} logical CPUs shared with other jobs, 1-min load {os.getloadavg()[0]:.1f} at the end; "
+        f"({os.cpu_count()} logical CPUs, 1-min load average {os.getloadavg()[0]:.1f} at the end; "
         f"{total_s / 60:.1f} min for {len(rows)} diagnoses, each in a process of its own with the persistent compilation "
         "cache: a first run on a machine spends most of its time compiling).",
         "",

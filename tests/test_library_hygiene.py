@@ -81,6 +81,20 @@ _WORKLOAD = """
         metric = fit_json(fit)["metrics"]["stiffness_rated"]
         return {"dtypes": [str(fit.map_result.u.dtype)], "log_density": [float(fit.map_result.log_density)],
                 "stiffness_rated": [metric["mean"], metric["sd"]]}
+
+    def diagnosis(path):
+        # the base fit alone (no refits), then the report a script writes: its final metrics
+        # (widened for misfit, Laplace draws) are computed after diagnose() has returned
+        import tempfile
+        from torsionfit.diagnose import DiagnoseOptions, diagnose, write_diagnosis
+        warnings.simplefilter("ignore")
+        campaign = simulate(load_bench(path), seed=1).campaign
+        d = diagnose(campaign, DiagnoseOptions(max_effects=0), seed=0)
+        with tempfile.TemporaryDirectory() as out:
+            final = write_diagnosis(d, campaign, out, seed=0)["final_metrics"]
+        metric = final["metrics"]["stiffness_rated"]
+        return {"dtypes": [str(d.final.map_result.u.dtype)], "misfit_inflation": [final["misfit_inflation"]],
+                "stiffness_rated": [metric["mean"], metric["sd"]]}
 """
 
 
@@ -136,3 +150,13 @@ def test_import_leaves_the_matplotlib_backend_as_it_was():
         print(matplotlib.get_backend())
     """)
     assert out.strip().lower() == "svg"
+
+
+@pytest.mark.slow  # a base fit, its signatures and the report's Laplace draws, twice (two processes)
+def test_a_diagnosis_report_computes_in_float64_without_touching_the_session(tmp_path):
+    """``write_diagnosis`` refits nothing but widens the final fit for misfit and draws its
+    metrics after ``diagnose`` has returned: outside diagnose's scope, as a script calls it
+    (float32 there moved the misfit inflation and the metrics of the committed trails)."""
+    scoped, reference = _scoped_and_global(tmp_path, "diagnosis")
+    for key in scoped:
+        np.testing.assert_allclose(scoped[key], reference[key], rtol=1e-8)

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from .._provenance import provenance
+from .._x64 import in_float64
 from ..units import ANGLE_UNITS
 from ._loop import JUMPS, Diagnosis
 
@@ -85,6 +86,9 @@ FINAL_NOTES = (("metrics_off_data_note", "off the data"), ("friction_hook_note",
                ("gap_segment_note", "physics"), ("noise_note", "noise"), ("laplace_note", "laplace"))
 
 
+# float64 here too: a script calls these after diagnose() has returned, outside its scope (in
+# float32 the Laplace parts of the misfit widening mix int32 and int64 indices, or truncate)
+@in_float64
 def final_metrics(d: Diagnosis, seed: int = 0) -> dict:
     """The final model's metrics and physical parameters with 95 % HDIs — the ``metrics`` and
     ``parameters`` blocks of ``fit.json``, made by the same code from the final fit's MAP and
@@ -113,6 +117,7 @@ def final_metrics(d: Diagnosis, seed: int = 0) -> dict:
             **{key: doc["diagnostics"][key] for key, _ in FINAL_NOTES if key in doc["diagnostics"]}}
 
 
+@in_float64
 def write_diagnosis(d: Diagnosis, campaign, out_dir, seed: int = 0, command: str | None = None) -> dict:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
