@@ -86,8 +86,9 @@ FINAL_NOTES = (("metrics_off_data_note", "off the data"), ("friction_hook_note",
                ("gap_segment_note", "physics"), ("noise_note", "noise"), ("laplace_note", "laplace"))
 
 
-# float64 here too: a script calls these after diagnose() has returned, outside its scope (in
-# float32 the Laplace parts of the misfit widening mix int32 and int64 indices, or truncate)
+# float64 here too: write_diagnosis (or a script) calls this after diagnose() has returned,
+# outside its scope (in float32 the Laplace parts of the misfit widening mix int32 and int64
+# indices, or truncate); the rest of the report reads what the fits computed
 @in_float64
 def final_metrics(d: Diagnosis, seed: int = 0) -> dict:
     """The final model's metrics and physical parameters with 95 % HDIs — the ``metrics`` and
@@ -117,7 +118,6 @@ def final_metrics(d: Diagnosis, seed: int = 0) -> dict:
             **{key: doc["diagnostics"][key] for key, _ in FINAL_NOTES if key in doc["diagnostics"]}}
 
 
-@in_float64
 def write_diagnosis(d: Diagnosis, campaign, out_dir, seed: int = 0, command: str | None = None) -> dict:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
