@@ -69,6 +69,7 @@ ZOO = (
     _friction("distributed_friction"),
     _friction("gap_lag"),
     _friction("gap_hold"),
+    _friction("play_torque_offset"),
     Entry("held gap about a torque of its own", "friction/base.toml",
           lambda folder: tf.friction_case(folder, "gap_centre", 0), ("gap_hold",)),
     # the lag in one step (as the memory's rival) or two (after the instantaneous level)

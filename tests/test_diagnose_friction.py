@@ -101,11 +101,19 @@ def _gap_centre(rng):
             {"gap_hold_torque_Nm": rng.uniform(20.0, 30.0), "gap_centre_torque_Nm": centre}, ())
 
 
+def _play_offset(rng):
+    # the torque reading's zero on the ±30 N·m play ramps 4–8 N·m off the large cycles', either
+    # way (on the measured loops the play ramps' gap crossings centre −1.5 to +1.1 N·m off the
+    # large ramps' against ±4 N·m ramps): the play ramps' loop moved along the torque, the large
+    # cycles not at all
+    return {"play_torque_offset": True}, {"play_torque_offset_Nm": rng.choice([-1.0, 1.0]) * rng.uniform(4.0, 8.0)}, ()
+
+
 #: left to ``make test-extended`` for the suite's time (each compiles its extension and its rival's);
 #: ``make test`` fits the held gap on a bench (tests/test_model_held_gap.py)
 EXTENDED_CASES = ("gap_lag", "gap_hold")
 CASES = {"load_dependent_friction": _load_dependent, "distributed_friction": _distributed, "gap_lag": _gap_lag,
-         "gap_hold": _gap_hold}
+         "gap_hold": _gap_hold, "play_torque_offset": _play_offset}
 #: found in two steps (the load dependence, then its lag): a case of its own
 LAG_STEPS = ["load_dependent_friction", "friction_load_lag"]
 MEMORY_STEPS = ["load_dependent_friction", "friction_load_memory"]
@@ -151,6 +159,12 @@ def test_diagnose_finds_undeclared_friction(tmp_path, effect, seed):
     if effect == "gap_hold":
         # a band centred on zero: neither the hold's off-centre band nor the centre comes in
         assert d.final.effects == {"gap_hold": True}, _summary(d)
+    if effect == "play_torque_offset":
+        # the play ramps' own zero recovered (the loop's slope there: ~1′ of gap over ~10 N·m)
+        fitted = float(d.final.map_result.values["play_torque_offset"])
+        print("fitted play-ramp torque offset (N·m):", fitted)
+        truth = BUILDERS[effect](np.random.default_rng(_seed("parameters", effect, seed)))[1]["play_torque_offset_Nm"]
+        assert abs(fitted - truth) < 1.0, _summary(d)
     if effect == "load_dependent_friction":
         # the missing μ leaves a residual far above the noise: the fit with it removes most of it
         assert d.final.rmse_arcsec <= 0.7 * d.base.rmse_arcsec, _summary(d)

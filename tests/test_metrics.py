@@ -24,6 +24,7 @@ from torsionfit.metrics import (
     play_cycles,
     play_from_arrays,
     reference_run_for,
+    small_cycle_rows,
     te_metrics,
 )
 from torsionfit.units import from_si
@@ -929,3 +930,19 @@ def test_branch_weights_are_the_branch_curves_and_a_branch_in_one_bin_is_an_erro
     flat = np.zeros(20)  # a "ramp" that never leaves one torque bin
     with pytest.raises(InputError, match="fewer than two torque bins"):
         branch_weights(flat, [(0, 19, 1)], [0], np.linspace(-1.0, 1.0, 11))
+
+
+def test_small_cycle_rows_mark_the_play_ramps_and_nothing_on_one_amplitude():
+    """The samples of the ±4 N·m cycles (the virgin loading to +4 and the return to 0 included)
+    and none of the ±36 N·m ones; a record of one amplitude class has no smallest cycles."""
+    time, tau = bench_protocol()
+    small = small_cycle_rows(time, tau, bench_angle(tau))
+    # the play ramps end where the torque, back at 0 after them, turns up towards the large peak
+    end = int(np.argmax(np.abs(tau) > SMALL + 0.5))
+    turn = int(np.argmin(tau[:end][::-1] != 0.0))  # samples back from there to the last zero
+    last_small = end - 1 - turn
+    assert small[:last_small - 3].all() and not small[last_small + 4:].any()
+    time1, tau1 = bench_protocol(n_small=0)
+    assert not small_cycle_rows(time1, tau1, bench_angle(tau1)).any()
+    # too short to hold a cycle: no error, no small cycles
+    assert not small_cycle_rows(time[:10], tau[:10], bench_angle(tau[:10])).any()

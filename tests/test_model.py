@@ -447,3 +447,22 @@ def test_a_fit_with_gap_steps_recovers_where_the_gap_is_taken_up(tmp_path):
     for k, truth in enumerate(logits):
         lo, hi = np.quantile(steps[:, k], [0.025, 0.975])
         assert lo < truth < hi, (k, lo, hi)
+
+
+def test_play_torque_offset_shifts_the_torque_of_the_smallest_cycles_alone():
+    """The model with the play ramps' torque zero δ_p equals the model without it driven by the
+    torque less δ_p on the marked samples (the state carried on into the large cycles)."""
+    t, tau = five_step(samples_per_step=60)
+    small = (np.arange(tau.size) < 120).astype(float)
+    with_offset = m.CampaignModel(run_kinds=("hysteresis",), play_torque_offset=True)
+    plain = m.CampaignModel(run_kinds=("hysteresis",))
+    assert [p.name for p in with_offset.parameters()] == [p.name for p in plain.parameters()][:-1] + ["play_torque_offset", "angle_offset"]
+    y = with_offset.predict({**base_params(), "play_torque_offset": 2.5}, [m.hysteresis_input(t, tau, small_cycle=small)])[0]
+    shifted = plain.predict(base_params(), [m.hysteresis_input(t, tau - 2.5 * small)])[0]
+    np.testing.assert_allclose(y, shifted, rtol=0, atol=1e-12)
+    unmarked = with_offset.predict({**base_params(), "play_torque_offset": 2.5}, [m.hysteresis_input(t, tau)])[0]
+    np.testing.assert_allclose(unmarked, plain.predict(base_params(), [m.hysteresis_input(t, tau)])[0], rtol=0, atol=1e-12)
+    assert not np.allclose(y, unmarked)
+    with pytest.raises(InputError, match="play_torque_offset"):
+        m.model_with_effects(("hysteresis",), {"play_torque_offset": {"on": True}}, 100.0)
+    assert m.model_with_effects(("hysteresis",), {"play_torque_offset": True}, 100.0).play_torque_offset

@@ -20,6 +20,7 @@ EFFECTS = (
     "asymmetry",
     "thermal_drift",
     "torque_offset",
+    "play_torque_offset",  # the torque reading's zero on the play ramps apart from the larger cycles' (motor-current torque)
     "load_dependent_friction",
     "distributed_friction",
     "temperature_dependence",

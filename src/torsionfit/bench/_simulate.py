@@ -12,6 +12,7 @@ from .. import model as m
 from ..model import model_with_effects as truth_model
 from .._errors import InputError
 from ..io import Campaign, HysteresisRun, TransmissionErrorRun, reference_temperature_C
+from ..metrics._hysteresis import small_cycle_rows
 from ..units import ANGLE_UNITS
 from ._config import Bench, HysteresisSpec, TESpec, te_tests
 
@@ -131,6 +132,7 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
     res = None if ins.encoder_resolution_arcsec is None else ins.encoder_resolution_arcsec * _ARCSEC
     torque_sd = bench.noise.torque_sd_Nm if bench.noise.torque_sd_Nm is not None else (ins.torque_sd_Nm or 0.0)
     offset = float(truth["torque_offset"]) if "torque_offset" in truth else 0.0
+    play_offset = float(truth["play_torque_offset"]) if "play_torque_offset" in truth else 0.0
     ripple = bench.effects.get("encoder_ripple")
     reference_C = reference_temperature_C(spec.temperature_C for spec in bench.runs)
     if model.temperature is not None:
@@ -153,13 +155,18 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
         theta = theta + _jumps(rng, len(theta), bench.noise.jump_share, bench.noise.jump_arcsec * _ARCSEC)
         return _quantise(position + theta, res) - position
 
-    inputs, drives = [], []
+    inputs, drives, readings = [], [], []
     for spec in bench.runs:
         if isinstance(spec, HysteresisSpec):
             t, tau = five_step_protocol(spec.peak_torque_Nm, spec.loading_rate_Nm_per_s, ins.sample_rate_Hz, spec.cycles,
                                        spec.dwell_s, spec.play_cycles, spec.play_torque_Nm)
-            inputs.append(m.hysteresis_input(t, tau + offset, delta_K(spec)))  # the sensor reads true torque + offset
+            # the play ramps' samples, as a fit will mark them (from the torque alone: the angle
+            # is not simulated yet, and the grouping of cycles does not read it)
+            small = small_cycle_rows(t, tau, tau, name=spec.name)
+            sensor = tau + offset + play_offset * small  # the sensor reads true torque + offset(s)
+            inputs.append(m.hysteresis_input(t, sensor, delta_K(spec), small))
             drives.append(tau)
+            readings.append(sensor)
         else:
             # an export's logger runs at a fixed clock: its samples per revolution follow the speed
             per_rev = bench.te_samples_per_rev if export is None else export.sample_rate_Hz * 60.0 / spec.speed_rpm
@@ -177,10 +184,11 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
             group = tests.index((spec.torque_Nm, spec.speed_rpm, spec.temperature_C)) if tests else 0
             inputs.append(m.te_input(phi, spec.torque_Nm + offset, spec.speed_rpm, spec.direction, clock, group, delta_K(spec)))
             drives.append(np.full(len(phi), spec.torque_Nm))
+            readings.append(drives[-1] + offset)
     comps = _true_components(model, truth, inputs)
 
     runs, hyst_i = [], 0
-    for spec, inp, c, tau in zip(bench.runs, inputs, comps, drives):
+    for spec, inp, c, tau, reading in zip(bench.runs, inputs, comps, drives, readings):
         total = np.asarray(c["total"])
         if isinstance(spec, HysteresisSpec):
             # the locked loop sits at one output position: its kinematic error is a constant
@@ -190,7 +198,7 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
             runs.append(HysteresisRun(
                 name=spec.name,
                 time_s=np.asarray(inp.time_s),
-                torque_Nm=tau + offset + rng.normal(0.0, torque_sd, len(tau)),
+                torque_Nm=reading + rng.normal(0.0, torque_sd, len(tau)),
                 angle_rad=measured_angle(total, np.deg2rad(spec.position_deg)),
                 loading_rate_Nm_per_s=spec.loading_rate_Nm_per_s,
                 source="synthetic",
@@ -217,7 +225,7 @@ def simulate(bench: Bench, seed: int | None = None) -> Simulation:
                 direction=spec.direction,
                 time_s=np.asarray(inp.time_s),
                 # an export logs no torque series (its load is the test's nominal one)
-                torque_series_Nm=None if export else tau + offset + rng.normal(0.0, torque_sd, len(tau)),
+                torque_series_Nm=None if export else reading + rng.normal(0.0, torque_sd, len(tau)),
                 source="synthetic",
                 zero_group=None if export is None else export_stem(bench.reducer, tests[int(inp.zero_group)]),
                 nominal_temperature_C=spec.temperature_C,

@@ -286,6 +286,36 @@ class TorqueOffset(Effect):
         return {**effects, self.name: True}
 
 
+def _small_cycle_mask(ctx, i) -> np.ndarray:
+    """Run ``i``'s samples of the smallest cycles (1) and the others (0), as the fit marked them."""
+    inp = ctx.map_result.problem.inputs[i]
+    small = getattr(inp, "small_cycle", None)
+    n = len(ctx.runs[i].residual)
+    return np.zeros(n) if small is None else np.broadcast_to(np.asarray(small, float), (n,))
+
+
+class PlayTorqueOffset(Effect):
+    name = "play_torque_offset"
+    signature_text = ("the play ramps' loop shifted in torque against the large cycles': residual ∝ dθ/dτ on the "
+                      "smallest cycles' samples alone")
+    extension_text = "a torque zero of the smallest cycles (the play ramps) of their own (a torque estimated from motor current)"
+
+    def applicable(self, ctx):
+        if ctx.effects.get(self.name):
+            return False
+        return any(r.kind == "hysteresis" and _small_cycle_mask(ctx, i).any() for i, r in enumerate(ctx.runs))
+
+    def signature(self, ctx, alpha):
+        cols = [(r.sensitivity * ctx.rated_torque_Nm * _small_cycle_mask(ctx, i))[:, None]
+                if r.kind == "hysteresis" and _small_cycle_mask(ctx, i).any() else None for i, r in enumerate(ctx.runs)]
+        return regression_evidence(self.name, ctx.runs, cols,
+                                   "residual proportional to the loop's local slope dθ/dτ on the play ramps alone: "
+                                   "the small cycles are shifted in torque against the large ones")
+
+    def extend(self, effects, evidence, ctx):
+        return {**effects, self.name: True}
+
+
 # --- friction and the gap: score tests against the fitted model ------------------------------------------
 @eqx.filter_jit
 def _alt_directions(problem, u, alt, extra: dict):
@@ -805,6 +835,7 @@ CATALOG: tuple[Effect, ...] = (
     Asymmetry(),
     ThermalDrift(),
     TorqueOffset(),
+    PlayTorqueOffset(),
     LoadDependentFriction(),
     FrictionLoadLag(),
     FrictionLoadMemory(),

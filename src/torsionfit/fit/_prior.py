@@ -136,6 +136,7 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "speed_compliance_1": (0.0, 1.0 / v_max),
         "speed_compliance_2": (0.0, 1.0 / v_max**2),
         "torque_offset": (0.0, 0.05 * rated),
+        "play_torque_offset": (0.0, 0.05 * rated),
         # per kelvin: a reducer's stiffness moves by well under 1 %/K; its no-load friction
         # (oil viscosity) by a few %/K
         "temperature_compliance": (0.0, 0.01),

@@ -36,6 +36,7 @@ from .._errors import InputError
 from ..io import Campaign, HysteresisRun
 from . import _transform as tr
 from .._segments import fit_ramps
+from ..metrics._hysteresis import small_cycle_rows
 from ._denoise import denoise_torque
 from ._noise_classes import conditioning_keep, ramp_amplitudes
 from ._prior import build_priors
@@ -120,7 +121,8 @@ def model_inputs(campaign: Campaign, denoise_fraction: float | None = None, retu
     for run in campaign.runs:
         if isinstance(run, HysteresisRun):
             tau, var = denoise_torque(run.torque_Nm, denoise_fraction, return_variance=True)
-            out.append(m.hysteresis_input(run.time_s, tau, campaign.temperature_delta_K(run)))
+            small = small_cycle_rows(run.time_s, run.torque_Nm, run.angle_rad, name=run.name)
+            out.append(m.hysteresis_input(run.time_s, tau, campaign.temperature_delta_K(run), small))
             variances.append(var)
         else:
             out.append(m.te_input(run.output_angle_rad, run.torque_Nm, run.speed_rpm, run.direction, run.time_s,
@@ -325,7 +327,7 @@ class FitProblem(eqx.Module):
         for inp, basis in zip(self.inputs, self.knot_basis):
             k = basis.shape[1]
             if k:
-                inp = m.HysteresisInput(inp.time_s, inp.torque_Nm + basis @ u_nl[i:i + k], inp.temperature_delta_K)
+                inp = eqx.tree_at(lambda x: x.torque_Nm, inp, inp.torque_Nm + basis @ u_nl[i:i + k])
             out.append(inp)
             i += k
         return out

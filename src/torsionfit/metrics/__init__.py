@@ -7,7 +7,8 @@
   torque of the smallest cycles) and loading-branch compliances of the largest cycles, from
   plain arrays (measured or simulated); :func:`cycle_classes` groups a run's cycles by amplitude,
   :func:`loading_compliance_cycles` gives the loading compliances branch by branch and
-  :func:`play_cycles` the play cycle by cycle, :func:`class_readings` both with standard errors;
+  :func:`play_cycles` the play cycle by cycle, :func:`class_readings` both with standard errors,
+  :func:`small_cycle_rows` marks the samples of the smallest cycles (the play ramps);
 - :func:`hysteresis_run_metrics` — all of these for one run, with a note for each metric that
   cannot be computed;
 - :func:`gap_crossings` — the torques at which the hysteresis runs' large cycles cross the
@@ -44,5 +45,6 @@ from ._hysteresis import (
     play_from_arrays as play_from_arrays,
     play_cycles as play_cycles,
     play_of as play_of,
+    small_cycle_rows as small_cycle_rows,
 )
 from ._te import te_metrics as te_metrics, te_profile as te_profile

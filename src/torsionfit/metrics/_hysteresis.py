@@ -535,6 +535,28 @@ def class_loading_rate(classes: CycleClasses, cls: AmplitudeClass, time_s) -> fl
     return float(np.median(rates)) if rates else None
 
 
+def small_cycle_rows(time_s, torque_Nm, angle_rad, *, name: str = "run") -> np.ndarray:
+    """Which samples (bool, one per sample) of a hysteresis record belong to its smallest
+    cycles — the play ramps of a bench that runs small cycles before large ones: the monotone
+    torque segments of :func:`cycle_classes` whose peak |torque| lies below the geometric mean
+    of the smallest class's amplitude and the next one's (a virgin loading to the small peak
+    counts; a ramp from a small trough to a large peak does not). All False when the record
+    has fewer than two amplitude classes (or none)."""
+    out = np.zeros(np.size(torque_Nm), dtype=bool)
+    try:
+        classes = cycle_classes(time_s, torque_Nm, angle_rad, name=name)
+    except InputError:
+        return out
+    if len(classes.classes) < 2:
+        return out
+    limit = float(np.sqrt(classes.classes[0].amplitude_Nm * classes.classes[1].amplitude_Nm))
+    peak = np.abs(classes.smoothed_torque_Nm)
+    for start, stop, _ in classes.segments:
+        if float(peak[start:stop + 1].max()) <= limit:
+            out[start:stop + 1] = True
+    return out
+
+
 def grouped_cycles(runs) -> list[CycleClasses]:
     """:func:`cycle_classes` of every hysteresis run whose cycles can be grouped (the others,
     e.g. a run with no full cycle, are left out)."""

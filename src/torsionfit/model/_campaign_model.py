@@ -62,6 +62,9 @@ class CampaignModel(eqx.Module):
     drift: bool = eqx.field(static=True, default=False)
     drift_shape: str = eqx.field(static=True, default="linear")  # _drift.SHAPES
     torque_offset: bool = eqx.field(static=True, default=False)
+    #: the torque reading's zero on the smallest cycles (the play ramps) differs from the
+    #: larger ones' (a torque estimated from motor current): one offset for those samples
+    play_torque_offset: bool = eqx.field(static=True, default=False)
     #: friction state at the start of each hysteresis run as a parameter (a run may start
     #: anywhere in the unit's history); False: the friction module's fixed initial state
     free_friction_start: bool = eqx.field(static=True, default=False)
@@ -98,6 +101,9 @@ class CampaignModel(eqx.Module):
             out += self.series.parameters()
         if self.torque_offset:
             out += (Parameter("torque_offset", "real", "N·m", "torque-sensor offset"),)
+        if self.play_torque_offset and self.n_hysteresis:
+            out += (Parameter("play_torque_offset", "real", "N·m",
+                              "torque-sensor offset on the smallest cycles (play ramps), beyond the larger ones'"),)
         if self.free_friction_start and self.n_hysteresis:
             out += (Parameter("friction_start", "signed_unit", "1", "friction state z at the start of each hysteresis run", self.n_hysteresis),)
             if self.backlash.hysteretic:
@@ -127,6 +133,8 @@ class CampaignModel(eqx.Module):
         torque = data.torque_Nm
         if self.torque_offset:
             torque = torque - params["torque_offset"]
+        if self.play_torque_offset:
+            torque = torque - params["play_torque_offset"] * data.small_cycle
         z0 = jnp.atleast_1d(params["friction_start"])[hyst_index] if self.free_friction_start else None
         friction_params, _ = self._at_temperature(params, data)
         friction_torque = self.friction.friction_torque(friction_params, torque, self.scan, z0, data.time_s)

@@ -19,7 +19,7 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
                        fitted: bool = False, te_loads_Nm=None) -> CampaignModel:
     """The base model plus the extensions named in ``effects`` (the catalog names of
     DESIGN §3: ``stiffness_nonlinearity``, ``rate_dependence``, ``kinematic_error``,
-    ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``,
+    ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``, ``play_torque_offset``,
     ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``, ``gap_preload``, ``gap_hold``, ``gap_lag``,
     ``series_compliance``, ``preload_stiffening``), as a bench file's ``[effects]``
     table or a user's switches give them. ``fitted``: the model a fit estimates, whose gap
@@ -88,8 +88,16 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
         drift=bool(drift),
         drift_shape=drift_shape,
         torque_offset=bool(effects.get("torque_offset")),
+        play_torque_offset=_plain("play_torque_offset", effects.get("play_torque_offset", False)),
         scan=scan,
     )
+
+
+def _plain(name: str, value) -> bool:
+    """An effect with no options: true or false."""
+    if isinstance(value, bool):
+        return value
+    raise InputError(f"[effects].{name}: expected true or false, got {value!r}")
 
 
 def _flagged(name: str, value, key: str, default: bool, make):

@@ -16,6 +16,9 @@ class HysteresisInput(eqx.Module):
     torque_Nm: jnp.ndarray
     #: the run's temperature above the campaign's reference (K; 0: at the reference)
     temperature_delta_K: jnp.ndarray = eqx.field(default_factory=lambda: jnp.asarray(0.0))
+    #: 1 on the samples of the run's smallest cycles (the play ramps), 0 elsewhere
+    #: (``metrics.small_cycle_rows``); what a torque zero of their own applies to
+    small_cycle: jnp.ndarray = eqx.field(default_factory=lambda: jnp.asarray(0.0))
 
 
 class TEInput(eqx.Module):
@@ -31,8 +34,10 @@ class TEInput(eqx.Module):
     temperature_delta_K: jnp.ndarray = eqx.field(default_factory=lambda: jnp.asarray(0.0))
 
 
-def hysteresis_input(time_s, torque_Nm, temperature_delta_K: float = 0.0) -> HysteresisInput:
-    return HysteresisInput(jnp.asarray(time_s, float), jnp.asarray(torque_Nm, float), jnp.asarray(float(temperature_delta_K)))
+def hysteresis_input(time_s, torque_Nm, temperature_delta_K: float = 0.0, small_cycle=None) -> HysteresisInput:
+    """``small_cycle``: the samples of the smallest cycles (bool or 0/1 per sample); None: none."""
+    small = jnp.asarray(0.0) if small_cycle is None else jnp.asarray(np.asarray(small_cycle, float))
+    return HysteresisInput(jnp.asarray(time_s, float), jnp.asarray(torque_Nm, float), jnp.asarray(float(temperature_delta_K)), small)
 
 
 def te_input(output_angle_rad, torque_Nm, speed_rpm, direction, time_s=None, zero_group: int = 0,

@@ -24,7 +24,7 @@ from .._errors import InputError
 from ..fit import denoise_torque
 from ..io import Campaign
 from ..metrics._hysteresis import (LOADING_FIT_MAX_START, LOADING_FIT_TOP, AmplitudeClass, CycleClasses, branch_weights,
-                                   cycle_classes)
+                                   cycle_classes, small_cycle_rows)
 
 
 @dataclass(frozen=True)
@@ -150,7 +150,8 @@ def record_reader(classes: RecordClasses) -> RecordReader:
     # the model is driven as the fit drives it: by the denoised measured torque (a play operator
     # on the raw torque slides by its noise and draws a narrower loop)
     def inp(run):
-        return m.hysteresis_input(run.time_s, denoise_torque(run.torque_Nm))
+        small = small_cycle_rows(run.time_s, run.torque_Nm, run.angle_rad, name=run.name)
+        return m.hysteresis_input(run.time_s, denoise_torque(run.torque_Nm), small_cycle=small)
 
     same = classes.large_run is classes.small_run
     inputs = (inp(classes.small_run),) if same else (inp(classes.small_run), inp(classes.large_run))
