@@ -224,22 +224,25 @@ angle = "rev"
 """
 
 
-def record(reducer, seed: int, rate_Hz: float = 50.0, noisy: bool = True):
+def record(reducer, seed: int, rate_Hz: float = 50.0, noisy: bool = True, play_torque_zero_Nm: float = 0.0):
     """(time_s, applied torque, test_nr, twist_rad, angle_rad read, torque_Nm read) of one
-    simulated and measured record; ``noisy=False``: the noiseless twist, unquantised."""
+    simulated and measured record; ``noisy=False``: the noiseless twist, unquantised.
+    ``play_torque_zero_Nm``: the torque reading's zero on the play ramps (test_nr < 100) moved by
+    that much against the stiffness ramps' (a motor-current torque estimate)."""
     time_s, torque, test_nr = torque_program(rate_Hz)
     twist = simulate_twist(reducer, torque)
     angle, torque_read = measure(twist, torque, seed) if noisy else measure(twist, torque, seed, 0.0, 1e-12, 0.0)
-    return time_s, torque, test_nr, twist, angle, torque_read
+    return time_s, torque, test_nr, twist, angle, torque_read + play_torque_zero_Nm * (test_nr < 100)
 
 
 def write_campaign(folder: Path, reducer, name: str, seed: int, rate_Hz: float = 50.0,
-                   noisy: bool = True) -> Path:
+                   noisy: bool = True, play_torque_zero_Nm: float = 0.0) -> Path:
     """Simulate, measure and write ``folder/<name>.csv`` and ``folder/campaign.toml``; returns the
     manifest's path. ``noisy=False``: the noiseless twist, unquantised (the truth a metric's
-    definition gives), the manifest's encoder step as with noise."""
+    definition gives), the manifest's encoder step as with noise; ``play_torque_zero_Nm`` as in
+    :func:`record`."""
     folder.mkdir(parents=True, exist_ok=True)
-    time_s, _, test_nr, _, angle, torque_read = record(reducer, seed, rate_Hz, noisy)
+    time_s, _, test_nr, _, angle, torque_read = record(reducer, seed, rate_Hz, noisy, play_torque_zero_Nm)
     with open(folder / f"{name}.csv", "w") as f:
         f.write("TIME,POSITION,TORQUE,test_nr\n")
         for row in zip(time_s, angle / (2.0 * math.pi), torque_read, test_nr):

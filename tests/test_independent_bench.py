@@ -46,8 +46,9 @@ RATE_HZ = 25.0
 ZOO = pytest.mark.skipif(not RUN_ZOO_CASES, reason="left out of the suite for its time: TORSIONFIT_DIAGNOSE_ZOO_CASES=1 runs it")
 
 
-def _campaign(tmp_path, reducer, name, seed=0, noisy=True, rate_Hz=RATE_HZ):
-    return load_campaign(bench.write_campaign(tmp_path / name, reducer, name, seed, rate_Hz=rate_Hz, noisy=noisy))
+def _campaign(tmp_path, reducer, name, seed=0, noisy=True, rate_Hz=RATE_HZ, play_torque_zero_Nm=0.0):
+    return load_campaign(bench.write_campaign(tmp_path / name, reducer, name, seed, rate_Hz=rate_Hz, noisy=noisy,
+                                              play_torque_zero_Nm=play_torque_zero_Nm))
 
 
 def test_clean_torque_side_loop_is_the_textbook_one():
@@ -93,6 +94,28 @@ def test_diagnose_adds_nothing_to_the_clean_independent_loop(tmp_path):
     params = result.final.map_result.values
     assert params["gap"] == pytest.approx(reducer.gap_rad, rel=0.05)
     assert params["friction_torque"] == pytest.approx(reducer.element_level_Nm[0], rel=0.05)
+
+
+@pytest.mark.extended
+@pytest.mark.xfail(strict=True, reason="known failure: on this independent loop the trail explains the play ramps' "
+                   "shifted torque zero with a held gap and the level's memory instead (docs/validation.md)")
+@pytest.mark.parametrize("seed,rate_Hz,zero_Nm", [pytest.param(0, RATE_HZ, 0.8, id="seed0-25Hz")])
+def test_diagnose_finds_the_play_ramps_own_torque_zero(tmp_path, seed, rate_Hz, zero_Nm):
+    """The clean loop of another simulator whose torque reading's zero on the ±4 N·m play ramps
+    (its own test_nr < 100) sits 0.8 N·m off the ±40 N·m ramps', as on the measured files'
+    crossings: diagnose should add the play ramps' torque zero (found through torsionfit's own
+    grouping of the cycles, not the file's test_nr) and read it back. It does not yet: a held gap
+    (crossed late on the large cycles) and a friction level remembering the peak load move the
+    crossings of small and large cycles apart too, and their refits earn more ELPD first."""
+    reducer = bench.clean_torque_side_reducer()
+    campaign = _campaign(tmp_path, reducer, "play-zero", seed=seed, rate_Hz=rate_Hz, play_torque_zero_Nm=zero_Nm)
+    result = diagnose(campaign, DiagnoseOptions(noise=NoiseOptions(ar1=False)), seed=seed)
+    from test_diagnose import _summary
+
+    print(_summary(result))
+    assert [s.effect for s in result.steps] == ["play_torque_offset"]
+    assert float(result.final.map_result.values["play_torque_offset"]) == pytest.approx(zero_Nm, abs=0.15)
+    assert result.final.rmse_arcsec < 0.8 * result.base.rmse_arcsec
 
 
 @pytest.mark.slow
