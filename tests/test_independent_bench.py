@@ -27,7 +27,7 @@ from torsionfit.fit import NoiseOptions
 from torsionfit.io import load_campaign
 from torsionfit.metrics import campaign_metrics
 
-from test_diagnose import RUN_ZOO_CASES
+from test_diagnose import RUN_ZOO_CASES, _summary
 
 _ROOT = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location("_independent_bench", _ROOT / "benchmarks" / "independent_bench.py")
@@ -110,8 +110,6 @@ def test_diagnose_finds_the_play_ramps_own_torque_zero(tmp_path, seed, rate_Hz, 
     reducer = bench.clean_torque_side_reducer()
     campaign = _campaign(tmp_path, reducer, "play-zero", seed=seed, rate_Hz=rate_Hz, play_torque_zero_Nm=zero_Nm)
     result = diagnose(campaign, DiagnoseOptions(noise=NoiseOptions(ar1=False)), seed=seed)
-    from test_diagnose import _summary
-
     print(_summary(result))
     assert [s.effect for s in result.steps] == ["play_torque_offset"]
     assert float(result.final.map_result.values["play_torque_offset"]) == pytest.approx(zero_Nm, abs=0.15)

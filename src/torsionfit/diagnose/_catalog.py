@@ -286,12 +286,14 @@ class TorqueOffset(Effect):
         return {**effects, self.name: True}
 
 
-def _small_cycle_mask(ctx, i) -> np.ndarray:
-    """Run ``i``'s samples of the smallest cycles (1) and the others (0), as the fit marked them."""
-    inp = ctx.map_result.problem.inputs[i]
-    small = getattr(inp, "small_cycle", None)
-    n = len(ctx.runs[i].residual)
-    return np.zeros(n) if small is None else np.broadcast_to(np.asarray(small, float), (n,))
+def _small_cycle_masks(ctx) -> list:
+    """Per run: its samples of the smallest cycles (1) and the others (0), as the fit marked them;
+    None for a run with no such samples (a TE run, a hysteresis run of one amplitude class)."""
+    out = []
+    for r, inp in zip(ctx.runs, ctx.map_result.problem.inputs):
+        small = np.broadcast_to(np.asarray(inp.small_cycle, float), (len(r.residual),)) if r.kind == "hysteresis" else None
+        out.append(small if small is not None and small.any() else None)
+    return out
 
 
 class PlayTorqueOffset(Effect):
@@ -303,11 +305,11 @@ class PlayTorqueOffset(Effect):
     def applicable(self, ctx):
         if ctx.effects.get(self.name):
             return False
-        return any(r.kind == "hysteresis" and _small_cycle_mask(ctx, i).any() for i, r in enumerate(ctx.runs))
+        return any(mask is not None for mask in _small_cycle_masks(ctx))
 
     def signature(self, ctx, alpha):
-        cols = [(r.sensitivity * ctx.rated_torque_Nm * _small_cycle_mask(ctx, i))[:, None]
-                if r.kind == "hysteresis" and _small_cycle_mask(ctx, i).any() else None for i, r in enumerate(ctx.runs)]
+        cols = [None if mask is None else (r.sensitivity * ctx.rated_torque_Nm * mask)[:, None]
+                for r, mask in zip(ctx.runs, _small_cycle_masks(ctx))]
         return regression_evidence(self.name, ctx.runs, cols,
                                    "residual proportional to the loop's local slope dθ/dτ on the play ramps alone: "
                                    "the small cycles are shifted in torque against the large ones")

@@ -182,6 +182,4 @@ def _temperature(value):
 
 def _switched(name: str, value, component):
     """``component()`` for an effect switched on by ``true``, None for ``false``."""
-    if not isinstance(value, bool):
-        raise InputError(f"[effects].{name}: expected true or false, got {value!r}")
-    return component() if value else None
+    return component() if _plain(name, value) else None
