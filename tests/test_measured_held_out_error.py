@@ -142,3 +142,33 @@ def test_the_play_and_the_large_ramps_are_crossed_about_centres_of_their_own():
     assert c["large_model"]["centre_Nm"] == pytest.approx(0.0, abs=0.15)
     text = he.markdown({"synthetic-unit": {**he.anatomy(saved), "classes": c}})
     assert "moves from the play ramps to the large ramps by more than 0.5 N·m on 1" in text
+
+
+def _interval_record(move):
+    """SYNTHETIC held-out ramp whose data are the model's prediction plus ``move`` (rad, per
+    sample): 200 draws shifted by 1e-4 rad (sd) and a noise sd of 1e-4 rad, the data scattered
+    by both (√2 · 1e-4 rad), so that the interval is calibrated where ``move`` is 0."""
+    rec = _ramp_record(cross_data_Nm=2.0, cross_model_Nm=2.0)
+    rng = np.random.default_rng(1)
+    model = rec["angle_rad"]
+    rec["prediction_rad"] = model[None] + 1e-4 * rng.standard_normal((200, 1))
+    rec["noise_marginal_rad"] = np.float64(1e-4)
+    rec["angle_rad"] = model + move + np.sqrt(2) * 1e-4 * rng.standard_normal(model.size)
+    return rec
+
+
+def test_a_ramp_moved_as_a_whole_is_covered_once_its_offsets_are_removed():
+    n = _ramp_record()["angle_rad"].size
+    o = he.offsets(_interval_record(np.full(n, 1e-3)))  # 10 predictive sds off, every branch alike
+    assert o["coverage90"] < 0.05
+    assert 0.8 <= o["coverage90_offsets_removed"] <= 0.95
+    assert o["offset_share_squared_error"] > 0.95
+    assert o["offset_rms_arcsec"] == pytest.approx(1e-3 * he.ARCSEC, rel=0.05)
+
+
+def test_a_ramp_whose_shape_moved_is_not_covered_with_its_offsets_removed():
+    tau = _ramp_record()["torque_Nm"]
+    o = he.offsets(_interval_record(1e-4 * tau))  # a compliance change: the error grows with |τ|
+    assert o["coverage90"] < 0.5
+    assert o["coverage90_offsets_removed"] < 0.5
+    assert o["offset_share_squared_error"] < 0.5

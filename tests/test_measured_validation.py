@@ -476,3 +476,12 @@ def test_the_table_says_whether_the_laplace_draws_stand_for_the_posterior():
     assert f"| {ks[0]:.2f} | {rows[0]['diagnostics']['converged']} |" in text
     old = [dict(r, diagnostics={k: v for k, v in r["diagnostics"].items() if k != "laplace_pareto_k"}) for r in rows]
     assert mv.pareto_k_text(old) == "" and "| n/a | True |" in mv.markdown(old, 16, "laplace", mv.EFFECTS, "iid")
+
+
+def test_a_coverage_just_outside_the_band_is_not_rounded_into_it():
+    assert mv.coverage_text(0.9517) == "95.2 %"  # above 95 %: "95 %" would read as inside
+    assert mv.coverage_text(0.7962) == "79.6 %"  # below 80 %: "80 %" would read as inside
+    assert mv.coverage_text(0.9473) == "95 %"  # inside, and rounded inside
+    assert mv.coverage_text(0.8004) == "80 %"
+    assert mv.coverage_text(0.4771) == "48 %"
+    assert mv.coverage_text(0.9549) == "95.5 %"
