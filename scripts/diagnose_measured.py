@@ -82,6 +82,7 @@ def diagnose_unit(unit: str, args) -> tuple[list[str], dict, str]:
     campaign = decimate(load_campaign(MANIFESTS / f"{unit}.toml"), args.decimate)
     say = lambda text: print(f"[{unit}] {text}", file=sys.stderr, flush=True)  # noqa: E731
     options = DiagnoseOptions(noise=noise_options(args), candidates_per_step=args.candidates_per_step,
+                              max_candidates_first_step=args.max_candidates_first_step,
                               max_candidates_per_step=args.max_candidates_per_step,
                               robust_signatures=not args.least_squares_signatures)
     result = diagnose(campaign, options, seed=args.seed, progress=say)
@@ -114,9 +115,11 @@ def main(argv=None) -> int:
     parser.add_argument("--candidates-per-step", type=int, default=DiagnoseOptions().candidates_per_step,
                         help="significant signatures refitted per step, in the order of their least-squares test, the one "
                              "that earns the most kept (1: the first alone, kept when it earns its keep)")
+    parser.add_argument("--max-candidates-first-step", type=int, default=DiagnoseOptions().max_candidates_first_step,
+                        help="when none of the base model's step's candidates earns its keep, the next ones are tried, "
+                             "up to this many refits in that step")
     parser.add_argument("--max-candidates-per-step", type=int, default=DiagnoseOptions().max_candidates_per_step,
-                        help="when none of a step's candidates earns its keep, the next ones are tried, up to this many "
-                             "refits in the step (set it to --candidates-per-step to stop at the first batch)")
+                        help="the same at every later step (default: the first batch alone)")
     parser.add_argument("--least-squares-signatures", action="store_true",
                         help="signatures by least squares alone, against the mean-square variogram's noise, which counts "
                              "the jumps (default: where a residual moves in jumps, each also tested winsorised)")

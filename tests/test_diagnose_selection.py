@@ -264,7 +264,8 @@ def test_a_residual_that_moves_in_jumps_gets_a_note_and_noise_does_not():
 def test_a_step_keeps_the_candidate_that_earns_the_most(monkeypatch):
     """Of a step's significant signatures (up to ``candidates_per_step``, strongest first) every
     one is refitted and the one that earns the most ELPD is kept; the others, earning or not, are
-    listed as rejected; when none earns, the next batch is tried, up to ``max_candidates_per_step``. Stand-in fits and signatures: the rule alone."""
+    listed as rejected; when none earns, the next batch is tried, up to ``max_candidates_first_step``
+    refits at the base model's step and ``max_candidates_per_step`` at later ones. Stand-in fits and signatures: the rule alone."""
     from dataclasses import replace
     from types import SimpleNamespace
 
@@ -314,23 +315,33 @@ def test_a_step_keeps_the_candidate_that_earns_the_most(monkeypatch):
     calls.clear()
     d = _loop.diagnose(SimpleNamespace(), _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=1), seed=0)
     assert [s.effect for s in d.steps] == ["strong"] and calls == [(), ("strong",)]
-    # when none of a batch earns its keep the next batch is tried, the best of it kept, and no
-    # batch after it: two per batch, the first two short of the thresholds
+    # at the base model's step, when none of a batch earns its keep, the next batch is tried, the
+    # best of it kept, and no batch after it: two per batch, the first two short of the thresholds
     gains.update(strong=1.0, weaker=2.0, weakest=50.0, fourth=80.0, fifth=90.0)
     catalog = tuple(Stand(n) for n in gains)
     strength = {"strong": -30.0, "weaker": -20.0, "weakest": -10.0, "fourth": -9.0, "fifth": -8.0}
     for e in catalog:
         e.signature = lambda ctx, alpha, name=e.name: Evidence(name, 0.0, 1, strength[name], 0.1, "")
     calls.clear()
-    options = _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=2, max_candidates_per_step=4)
+    options = _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=2, max_candidates_first_step=4)
     d = _loop.diagnose(SimpleNamespace(), options, seed=0)
     assert [s.effect for s in d.steps] == ["fourth"]
     assert calls == [(), ("strong",), ("weaker",), ("weakest",), ("fourth",)]
     assert [s.effect for s in d.rejected] == ["strong", "weaker", "weakest"]
-    # no further batch than the step's budget: the first batch alone
     calls.clear()
-    d = _loop.diagnose(SimpleNamespace(), replace(options, max_candidates_per_step=2), seed=0)
+    d = _loop.diagnose(SimpleNamespace(), replace(options, max_candidates_first_step=2), seed=0)
     assert d.steps == [] and calls == [(), ("strong",), ("weaker",)]
+    # at a later step the next ones up to max_candidates_per_step (by default the batch alone)
+    monkeypatch.setattr(_loop, "_signatures", lambda ctx, options, added: [
+        (e, e.signature(ctx, options.alpha)) for e in options.catalog if e.name not in added])
+    gains.update(strong=90.0, weaker=1.0, weakest=2.0, fourth=80.0, fifth=3.0)
+    calls.clear()
+    options = _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=1, max_candidates_first_step=2,
+                                    max_candidates_per_step=1)
+    d = _loop.diagnose(SimpleNamespace(), options, seed=0)
+    assert [s.effect for s in d.steps] == ["strong"] and calls == [(), ("strong",), ("strong", "weaker")]
+    d = _loop.diagnose(SimpleNamespace(), replace(options, max_candidates_per_step=3), seed=0)
+    assert [s.effect for s in d.steps] == ["strong", "fourth"]
 
 
 def _robust_view(name, residual, design, physics=None):
