@@ -195,9 +195,9 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
         accepted = None
         budget = options.max_candidates_per_step if steps else options.max_candidates_first_step
         for i, (effect, ev) in enumerate(candidates[: max(budget, options.candidates_per_step)]):
-            if accepted is not None and i % options.candidates_per_step == 0:
-                break  # a batch found an extension that earns its keep: the next batch is not tried
-            if i and i % options.candidates_per_step == 0:
+            if i and i % options.candidates_per_step == 0:  # a batch is done
+                if accepted is not None:
+                    break  # it found an extension that earns its keep: the next batch is not tried
                 say(f"  none of the {i} refits earned its keep: trying the next candidates")
             trial_effects = effect.extend(effects, ev, current.context)
             say(f"trying {effect.name} (log10 p = {ev.log10_p:.1f})")
