@@ -59,6 +59,7 @@ import numpy as np
 
 import torsionfit  # noqa: F401
 from torsionfit import InputError
+from torsionfit._provenance import environment
 from torsionfit.batch import executor
 from torsionfit.fit import NoiseOptions, model_inputs
 from torsionfit.fit._problem import cycle_amplitude_shape
@@ -384,6 +385,8 @@ def validate(unit: str, folder: Path, args) -> dict:
         "unit": unit,
         "effects": options.effects,
         "seconds_fit": seconds,
+        # the fit repeats to the digit on this environment, not across environments
+        "environment": environment(),
         **({} if shift is None else {"play_torque_shift_Nm": shift}),
         "rmse_in_sample_arcsec": float(np.sqrt(np.mean((y[fitted] - mean[fitted]) ** 2)) / ARCSEC),
         "rmse_in_sample_large_arcsec": float(np.sqrt(np.mean((y[large_train] - mean[large_train]) ** 2)) / ARCSEC),
@@ -769,6 +772,22 @@ def model_text(rows: list[dict], effects: dict) -> str:
     return "; ".join(f"base + {model} on the {', '.join(designs)} loops" for model, designs in by_model.items())
 
 
+def environment_text(rows: list[dict]) -> str:
+    """Where the rows were computed (the fits repeat to the digit there, not elsewhere); empty
+    for rows written before the environment was recorded."""
+    envs = [r["environment"] for r in rows if r.get("environment")]
+    if not envs:
+        return ""
+    distinct = {json.dumps(e, sort_keys=True) for e in envs}
+    e = envs[0]
+    where = (f"Python {e['python']}, jax {e['jax']}, jaxlib {e['jaxlib']}, numpy {e['numpy']}, scipy {e['scipy']}, "
+             f"equinox {e['equinox']}, optimistix {e['optimistix']}, lineax {e['lineax']}; {e['cpu']}")
+    more = "" if len(distinct) == 1 else f" ({len(distinct)} environments among the rows: validation.json records each row's)"
+    return (f"Computed with {where}{more}. A fit repeats to the digit on the same environment; on another (other package "
+            "versions, another processor's instruction set) rounding moves the MAP within the solver's tolerance, and the "
+            "columns read off it and the draws move with it.")
+
+
 def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise: str, laplace_shape: str = "gaussian",
              hop: bool = False, hold_out_ramp: int = 1) -> str:
     rows = sorted(rows, key=lambda r: r["unit"])  # the table in unit order, whatever order they were fitted in
@@ -821,6 +840,9 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
     k_text = pareto_k_text(rows)
     if k_text:
         lines += ["", k_text]
+    env_text = environment_text(rows)
+    if env_text:
+        lines += ["", env_text]
     with_c = [r for r in rows if r.get("compliance_model_deg_per_Nm")]
     if with_c:
         own = [r for r in with_c if r["compliance_model_deg_per_Nm"]["hdi95"][0] <= np.mean(r["compliance_data_deg_per_Nm"])

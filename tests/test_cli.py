@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import torsionfit
-from torsionfit._provenance import command_line
+from torsionfit._provenance import command_line, environment
 from torsionfit.accept import ExtrapolationWarning
 from torsionfit.cli import EXIT_INPUT_ERROR, EXIT_INTERRUPTED, _one_line_warnings, build_parser, main
 from torsionfit.sample import run_sampler
@@ -118,7 +118,8 @@ def test_metrics_json_records_version_and_command_line(tmp_path, capsys):
     assert main(["metrics", str(tmp_path / "c"), "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["provenance"] == {"torsionfit_version": torsionfit.__version__, "seed": None,
-                                 "command": f"torsionfit metrics {tmp_path / 'c'} --json"}
+                                 "command": f"torsionfit metrics {tmp_path / 'c'} --json",
+                                 "environment": environment()}
 
 
 def _noise_seen(tmp_path, monkeypatch, module, function: str, command: str, flag: list, read, part=lambda o: o.noise):

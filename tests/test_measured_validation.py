@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from torsionfit._provenance import environment
+
 pytest.importorskip("scipy", reason="the validation's reference fit needs scipy (not a torsionfit dependency)")
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -485,3 +487,17 @@ def test_a_coverage_just_outside_the_band_is_not_rounded_into_it():
     assert mv.coverage_text(0.8004) == "80 %"
     assert mv.coverage_text(0.4771) == "48 %"
     assert mv.coverage_text(0.9549) == "95.5 %"
+
+
+def test_the_page_names_the_environment_its_fits_repeat_on():
+    """Each row records the numerical environment it was fitted in (the fits repeat to the digit
+    there, not across environments); the page names it, says when rows differ, and says
+    nothing for rows written before it was recorded."""
+    doc = json.loads((ROOT / "docs" / "measured" / "validation" / "validation.json").read_text())
+    rows = [dict(r, environment=environment()) for r in doc["units"]]
+    text = mv.environment_text(rows)
+    assert text.startswith(f"Computed with Python {environment()['python']}, jax {environment()['jax']}")
+    assert text in mv.markdown(rows, doc["decimate"], doc["sampler"], doc["effects"], doc["noise"], doc["laplace_shape"])
+    other = [dict(r, environment=dict(r["environment"], jax="0.0.0")) if i == 0 else r for i, r in enumerate(rows)]
+    assert "(2 environments among the rows" in mv.environment_text(other)
+    assert mv.environment_text([{k: v for k, v in r.items() if k != "environment"} for r in rows]) == ""

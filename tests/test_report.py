@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import torsionfit
-from torsionfit._provenance import command_line
+from torsionfit._provenance import command_line, environment
 from torsionfit.bench import load_bench, simulate
 from torsionfit.cli import EXIT_INPUT_ERROR, main
 from torsionfit.model import model_with_effects
@@ -172,7 +172,8 @@ def test_fit_command_laplace(tmp_path, noisy_bench, capsys):
     assert "stiffness_rated" in out and "SYNTHETIC" in out
     doc = json.loads((tmp_path / "fit" / "fit.json").read_text())
     assert doc["diagnostics"]["sampler"] == "laplace"
-    assert doc["provenance"] == {"torsionfit_version": torsionfit.__version__, "seed": 1, "command": command_line(argv)}
+    assert doc["provenance"] == {"torsionfit_version": torsionfit.__version__, "seed": 1, "command": command_line(argv),
+                                 "environment": environment()}
     # the model holds on its own bench: no AR(1) coefficient near the bound, no noise note
     assert doc["diagnostics"]["ar1_misfit_runs"] == {} and "noise_note" not in doc["diagnostics"]
     assert "\nnoise: " not in out
