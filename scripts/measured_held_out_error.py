@@ -348,8 +348,8 @@ def markdown(rows: dict[str, dict]) -> str:
             "The held-out error split into each monotone branch's mean offset (the branch moved as a whole) and the "
             "rest (its shape), and the 90 % interval's coverage with those offsets removed (read off the held-out "
             "data: an oracle, not a prediction). The interval is rebuilt from the saved draws with "
-            f"{NOISE_REPEATS} noise draws each (the validation's table: one each), so a loop at the band's edge may "
-            "fall on the other side of it than in the table."),
+            f"{NOISE_REPEATS} noise draws each of its own (the validation's table draws as many with its own random "
+            "numbers), so a loop at the band's edge may fall on the other side of it than in the table."),
             "", "| unit | branches | offset RMS (arcsec) | offsets' share of the squared error | coverage | "
             "coverage, offsets removed |", "| --- | ---: | ---: | ---: | ---: | ---: |"]
         for unit, o in split.items():
