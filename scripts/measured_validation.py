@@ -956,7 +956,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("-o", "--output", type=Path, default=Path("out/validation"))
     parser.add_argument("--units", nargs="*", help="example manifest names or designs, e.g. split-pccf (default: all 21)")
-    parser.add_argument("--sampler", choices=("auto", "emcee", "nuts", "laplace"), default="laplace")
+    parser.add_argument("--sampler", choices=("auto", "emcee", "nuts", "smc", "laplace"), default="laplace")
     parser.add_argument("--laplace-shape", choices=("gaussian", "split"), default="split",
                         help="Laplace draws from a split normal measured along the Gaussian's axes (default) or the Gaussian")
     parser.add_argument("--decimate", type=int, default=16)

@@ -250,3 +250,13 @@ def test_torsionfits_warnings_are_one_line(capsys):
     show(ExtrapolationWarning("'kd': the decision extrapolates the model (speed 0–30 rpm asked)"),
          ExtrapolationWarning, "x.py", 1)
     assert capsys.readouterr().err == "torsionfit accept: warning: 'kd': the decision extrapolates the model (speed 0–30 rpm asked)\n"
+
+
+@pytest.mark.parametrize("flag, wanted", [(["--sampler", "smc"], ("smc", 1000)),
+                                          (["--sampler", "smc", "--smc-particles", "300"], ("smc", 300))])
+def test_fit_passes_the_smc_sampler_and_its_particles(tmp_path, monkeypatch, flag, wanted):
+    import torsionfit.report as report_module
+
+    seen = _noise_seen(tmp_path, monkeypatch, report_module, "fit_campaign", "fit", flag, lambda o: (o.sampler, o.smc_particles),
+                       part=lambda o: o)
+    assert seen == wanted

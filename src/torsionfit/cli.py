@@ -142,6 +142,7 @@ def _cmd_fit(args) -> int:
         resume=args.resume,
         decimate=args.decimate,
         laplace_shape=args.laplace_shape,
+        smc_particles=args.smc_particles,
     )
     say = _say(args)  # progress once the input is known good: bad input is one line
     say(f"read {args.campaign}: " + _campaign_line(campaign) + f"; sampler {args.sampler}")
@@ -340,10 +341,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_seed(p)
     _add_with(p, help="switch a model extension on by hand (repeatable), e.g. --with rate_dependence "
                       "--with 'kinematic_error=[1, 2, 39]' --with 'speed_dependence={viscous = true, compliance_order = 2}'")
-    _add_sampler(p, default="auto", choices=("auto", "emcee", "nuts", "laplace"),
+    _add_sampler(p, default="auto", choices=("auto", "emcee", "nuts", "smc", "laplace"),
                  help="auto (default): emcee, or NUTS when emcee's first checks show it needs more than "
-                      "--max-steps; emcee; nuts (gradient-based, BlackJAX); laplace: the MAP's Gaussian "
-                      "approximation (fast screening). The choice and its reason go to fit.json")
+                      "--max-steps; emcee; nuts (gradient-based, BlackJAX); smc: tempered SMC from the split "
+                      "normal to the posterior (where laplace's Pareto k says its draws do not stand for it); "
+                      "laplace: the MAP's Gaussian approximation (fast screening). The choice and its reason go "
+                      "to fit.json")
+    p.add_argument("--smc-particles", type=int, default=1000, help="smc's particles (its draws; default 1000)")
     p.add_argument("--laplace-shape", choices=("gaussian", "split"), default="gaussian",
                    help="laplace's draws: the Gaussian (default), or a split normal whose half-axes are measured "
                         "on the posterior (for posteriors that are not Gaussian: widened fits of measured loops)")

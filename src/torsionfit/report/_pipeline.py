@@ -44,7 +44,9 @@ class FitOptions:
     """How to fit. ``effects``: model extensions by catalog name (DESIGN §3), switched on by
     hand; ``sampler``: "auto" (emcee where its first checks say it converges within
     ``max_steps``, else NUTS — :func:`sample_posterior`), "emcee", "nuts" (BlackJAX, gradient
-    based) or "laplace" (the MAP's Gaussian approximation, fast, for screening).
+    based), "smc" (tempered SMC from the split normal to the posterior, ``smc_particles``
+    particles: for posteriors the split normal does not stand for) or "laplace" (the MAP's
+    Gaussian approximation, fast, for screening).
     ``max_steps``: emcee's step budget; ``n_chains``, ``n_warmup``, ``max_draws``: NUTS's
     chains, warm-up steps and cap on draws per chain (grown by half from 500 until converged).
     ``laplace_shape``: the Laplace sampler's draws from the Gaussian ("gaussian") or from a split
@@ -64,6 +66,7 @@ class FitOptions:
     backend_path: str | None = None
     resume: bool = False
     laplace_draws: int = 4000
+    smc_particles: int = 1000  # tempered SMC's particles (= its draws)
     laplace_shape: str = "gaussian"
     metric_draws: int = 2000  # draws used for the derived metrics
     lost_motion_pct: float = 3.0
@@ -297,7 +300,7 @@ def sampler_kwargs(options: FitOptions, seed: int) -> dict:
             "backend_path": options.backend_path, "resume": options.resume}
 
 
-SAMPLERS = ("auto", "emcee", "nuts", "laplace")
+SAMPLERS = ("auto", "emcee", "nuts", "smc", "laplace")
 #: emcee's check interval under ``--sampler auto`` (emcee's own default: 500)
 AUTO_CHECK_EVERY = 250
 
@@ -355,6 +358,21 @@ def auto_switch_rule(max_steps: int, tau_factor: float = 50.0):
     return rule
 
 
+@in_float64
+def run_smc(problem, map_result, options: FitOptions, seed: int):
+    """Tempered SMC (:func:`~torsionfit.sample.tempered_smc`) from the split normal along the
+    Laplace axes to ``problem``'s posterior (widened, when it is), ``options.smc_particles``
+    particles."""
+    from ..sample import tempered_smc
+    from ..sample._emcee import _LogProb
+
+    approximation = laplace_approximation(problem, map_result, "split")
+    log_density = _LogProb(problem, batch=LOG_DENSITY_BATCH)
+    names = tuple(getattr(map_result, "names", None) or (f"u[{i}]" for i in range(len(map_result.u))))
+    return tempered_smc(log_density, approximation, np.random.default_rng(seed), options.smc_particles,
+                        names=names, seed=seed, progress=log.info if options.progress else None)
+
+
 def sample_posterior(problem, map_result, options: FitOptions, seed: int):
     """(sample result, sampler used, reason of the choice) for the MCMC samplers.
 
@@ -367,6 +385,8 @@ def sample_posterior(problem, map_result, options: FitOptions, seed: int):
         return run_sampler(problem, map_result, **sampler_kwargs(options, seed)), "emcee", "asked for (--sampler emcee)"
     if options.sampler == "nuts":
         return run_nuts(problem, map_result, **nuts_kwargs(options, seed)), "nuts", "asked for (--sampler nuts)"
+    if options.sampler == "smc":
+        return run_smc(problem, map_result, options, seed), "smc", "asked for (--sampler smc)"
     with warnings.catch_warnings():
         from ..sample import ConvergenceWarning
 
@@ -387,8 +407,23 @@ def sample_posterior(problem, map_result, options: FitOptions, seed: int):
 
 
 def _sampler_diagnostics(sample_result, used: str, conv: dict, chain: np.ndarray) -> dict:
-    """fit.json's diagnostics of an emcee or NUTS run; ``conv``: R̂ and ESS over all its kept
-    draws (``convergence_summary``)."""
+    """fit.json's diagnostics of an emcee, NUTS or SMC run; ``conv``: R̂ and ESS over all its
+    kept draws (``convergence_summary``)."""
+    if used == "smc":
+        # converged: the tempering reached the posterior and every stage's moves decorrelated
+        # the particles from where resampling put them (sample/_smc.py); one chain of particles
+        return {
+            "converged": bool(sample_result.converged),
+            "rhat_max": None,
+            "ess_min": float(chain.shape[0]),
+            "smc_particles": int(chain.shape[0]),
+            "smc_betas": [float(b) for b in sample_result.betas],
+            "smc_moves": [int(m) for m in sample_result.stage_moves],
+            "smc_acceptance": [float(a) for a in sample_result.stage_acceptance],
+            "smc_correlation_max": float(max(sample_result.stage_correlation, default=0.0)),
+            "approximation_pareto_k": float(sample_result.approximation_pareto_k),
+            "reason": sample_result.reason or "",
+        }
     if used == "nuts":
         # the rule (R̂ ≤ 1.01, bulk and tail ESS ≥ 400 for every entry of u, no divergence)
         # was checked on u by run_nuts; R̂ and ESS are rank based, so they hold for the

@@ -1,4 +1,4 @@
-"""Posterior sampling (emcee, NUTS, Laplace draws) and the ArviZ tree of a fit (DESIGN §2, §5.2)."""
+"""Posterior sampling (emcee, NUTS, tempered SMC, Laplace draws) and the ArviZ tree of a fit (DESIGN §2, §5.2)."""
 
 from ._emcee import (
     BufferedHDFBackend as BufferedHDFBackend,
@@ -15,6 +15,7 @@ from ._nuts import (
 )
 from ._laplace import LaplaceResult as LaplaceResult, laplace_result as laplace_result
 from ._pareto import good_k as good_k, importance_pareto_k as importance_pareto_k
+from ._smc import SMCResult as SMCResult, tempered_smc as tempered_smc
 from ._split_normal import SplitNormal as SplitNormal, split_normal as split_normal
 from ._tree import (
     convergence_summary as convergence_summary,

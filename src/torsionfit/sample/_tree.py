@@ -422,6 +422,8 @@ def to_datatree(problem, sample_result: SampleResult, run_names, *, draws=None, 
         lib = dict(inference_library="blackjax", inference_library_version=getattr(blackjax, "__version__", "?"))
     elif laplace:
         lib = dict(inference_library="torsionfit", inference_library_version="Laplace approximation at the MAP")
+    elif getattr(sample_result, "sampler", "emcee") == "smc":
+        lib = dict(inference_library="torsionfit", inference_library_version="tempered SMC from the split normal")
     else:
         lib = dict(inference_library="emcee", inference_library_version=emcee.__version__)
     groups = {}
@@ -467,6 +469,8 @@ def to_datatree(problem, sample_result: SampleResult, run_names, *, draws=None, 
         how = "chain = the one chain of independent draws of the Laplace approximation, draw = draw index"
     elif nuts:
         how = "chain = NUTS chain, draw = draw after the warm-up of burn_in steps"
+    elif getattr(s, "sampler", "emcee") == "smc":
+        how = "chain = the one set of SMC particles (equally weighted draws of the posterior), draw = particle"
     else:
         how = "chain = emcee walker, draw = kept step (step = burn_in + thin·(draw + 1) − 1)"
     tree.attrs.update(

@@ -1,0 +1,36 @@
+"""scripts/measured_smc.py's page: SMC against the split normal on measured loops (the fits
+themselves run by the script; here its table from rows of the shape it writes)."""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+from torsionfit._provenance import environment
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "scripts"))
+_spec = importlib.util.spec_from_file_location("_measured_smc", ROOT / "scripts" / "measured_smc.py")
+ms = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(ms)
+
+
+def _entry(play, slope, off, **extra):
+    return {"seconds": 30.0, "converged": extra.pop("converged", True), "reason": extra.pop("reason", ""), "off_data": off,
+            "metrics": {"play": {"mean": play[0], "hdi95": play[1:], "unit": "arcmin", "data": 12.2},
+                        "stiffness_loading": {"mean": slope[0], "hdi95": slope[1:], "unit": "Nm/arcmin", "data": 0.1776}},
+            **extra}
+
+
+def test_the_page_sets_both_samplers_side_by_side_and_names_a_run_that_did_not_mix():
+    smc = dict(smc_betas=[0.1, 0.5, 1.0], smc_moves=[100, 100, 100], smc_acceptance=[0.23] * 3,
+               smc_correlation_max=0.62, approximation_pareto_k=1.8, converged=False,
+               reason="the particles did not forget their start within 100 moves at stage(s) 1, 2, 3")
+    row = {"unit": "split-pccf-preload2-pos5", "environment": environment(),
+           "laplace": _entry((10.8, 10.5, 11.3), (0.1829, 0.1824, 0.1835), ["compliance_loading_neg"], pareto_k=1.87),
+           "smc": _entry((10.5, 8.3, 12.6), (0.1820, 0.1770, 0.1878), [], **smc)}
+    text = ms.markdown([row], 1000)
+    line = next(l for l in text.splitlines() if l.startswith("| split-pccf-preload2-pos5"))
+    assert "| 1.80 |" in line and "0.182 (0.177–0.1878)" in line and "0.1829 (0.1824–0.1835)" in line
+    assert "| compliance_loading_neg / none |" in line and "| 3 | 0.62 | False |" in line
+    assert "split-pccf-preload2-pos5: the particles did not forget their start" in text
+    assert "Computed with Python" in text and "REAL" in text
