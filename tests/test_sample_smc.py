@@ -45,9 +45,9 @@ def test_a_posterior_wider_and_elsewhere_than_the_approximation_is_recovered(see
 def test_moves_that_cannot_forget_the_start_are_not_converged():
     dim = 6
     res = tempered_smc(_target(np.ones(dim), 4.0 * np.eye(dim)), _narrow_start(dim), np.random.default_rng(0), 300,
-                       max_moves=1, min_moves=1)
+                       max_moves=1, min_moves=1, names=[f"p{i}" for i in range(dim)])
     assert not res.converged
-    assert "did not forget their start within 1 moves" in res.reason
+    assert "did not forget their start within 1 moves" in res.reason and ", of p" in res.reason
 
 
 def test_a_posterior_zero_at_every_particle_stops_with_a_reason():

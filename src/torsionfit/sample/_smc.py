@@ -89,15 +89,19 @@ def _systematic(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.minimum(idx, n - 1)
 
 
-def _max_correlation(start: np.ndarray, now: np.ndarray) -> float:
-    """The largest |correlation| over coordinates between the particles' positions at the start
-    of a stage and now (0 for a coordinate that does not vary)."""
+def _correlations(start: np.ndarray, now: np.ndarray) -> np.ndarray:
+    """|correlation| of each coordinate between the particles' positions at the start of a stage
+    and now (0 for a coordinate that does not vary)."""
     a = start - start.mean(axis=0)
     b = now - now.mean(axis=0)
     den = np.sqrt((a**2).sum(axis=0) * (b**2).sum(axis=0))
     with np.errstate(invalid="ignore", divide="ignore"):
-        c = np.where(den > 0, np.abs((a * b).sum(axis=0)) / den, 0.0)
-    return float(np.max(c))
+        return np.where(den > 0, np.abs((a * b).sum(axis=0)) / den, 0.0)
+
+
+def _max_correlation(start: np.ndarray, now: np.ndarray) -> float:
+    """The largest of :func:`_correlations`."""
+    return float(np.max(_correlations(start, now)))
 
 
 def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: int = 1000, *,
@@ -109,12 +113,13 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
     module docstring. ``progress``: called with one line per stage."""
     from ._pareto import importance_pareto_k
 
+    names = tuple(names)
     x = np.asarray(approximation.draw(rng, n_particles), float)
     n, dim = x.shape
     lq = np.asarray(approximation.log_density(x), float)
     lp = np.asarray(log_p(x), float)
     k_q = importance_pareto_k(lp, lq)
-    beta, betas, moves, accept, corr = 0.0, [], [], [], []
+    beta, betas, moves, accept, corr, slowest = 0.0, [], [], [], [], []
     scale = 2.38 / np.sqrt(dim)
     reason = ""
     while beta < 1.0:
@@ -161,14 +166,18 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
                 break
         moves.append(m)
         accept.append(float(np.mean(rates)))
-        corr.append(_max_correlation(start, x))
+        by_coordinate = _correlations(start, x)
+        corr.append(float(np.max(by_coordinate)))
+        slowest.append(int(np.argmax(by_coordinate)))
         if progress is not None:
             progress(f"[smc] stage {len(betas)}: β = {beta:.4f}, {m} moves, acceptance {accept[-1]:.2f}, "
                      f"correlation with the stage's start {corr[-1]:.2f}")
     if not reason and max(corr, default=0.0) > decorrelation:
         stuck = [i + 1 for i, c in enumerate(corr) if c > decorrelation]
+        worst = slowest[int(np.argmax(corr))]
+        who = names[worst] if worst < len(names) else f"u[{worst}]"
         reason = (f"the particles did not forget their start within {max_moves} moves at stage(s) "
-                  f"{', '.join(map(str, stuck))} (largest correlation {max(corr):.2f} > {decorrelation})")
+                  f"{', '.join(map(str, stuck))} (largest correlation {max(corr):.2f} > {decorrelation}, of {who})")
     converged = not reason
     return SMCResult(
         chain=x[:, None, :], log_prob=lp[:, None], tau=np.ones(dim), n_steps=int(sum(moves)), burn_in=0, thin=1,
