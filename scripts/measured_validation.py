@@ -59,7 +59,7 @@ import numpy as np
 
 import torsionfit  # noqa: F401
 from torsionfit import InputError
-from torsionfit._provenance import environment
+from torsionfit._provenance import NUMERICAL_PACKAGES, environment
 from torsionfit.batch import executor
 from torsionfit.fit import NoiseOptions, model_inputs
 from torsionfit.fit._problem import cycle_amplitude_shape
@@ -780,8 +780,8 @@ def environment_text(rows: list[dict]) -> str:
         return ""
     distinct = {json.dumps(e, sort_keys=True) for e in envs}
     e = envs[0]
-    where = (f"Python {e['python']}, jax {e['jax']}, jaxlib {e['jaxlib']}, numpy {e['numpy']}, scipy {e['scipy']}, "
-             f"equinox {e['equinox']}, optimistix {e['optimistix']}, lineax {e['lineax']}; {e['cpu']}")
+    packages = ", ".join(f"{name} {e[name]}" for name in NUMERICAL_PACKAGES if name in e)
+    where = f"Python {e['python']}, {packages}; {e['cpu']}"
     more = "" if len(distinct) == 1 else f" ({len(distinct)} environments among the rows: validation.json records each row's)"
     return (f"Computed with {where}{more}. A fit repeats to the digit on the same environment; on another (other package "
             "versions, another processor's instruction set) rounding moves the MAP within the solver's tolerance, and the "

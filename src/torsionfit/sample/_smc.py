@@ -18,7 +18,8 @@ correlation with the particles' positions at the start of the stage has fallen t
 weighted draws of p (Del Moral, Doucet & Jasra 2006; Chopin & Papaspiliopoulos 2020, ch. 17).
 
 The sampler is gradient free and calls the posterior in batches (one compiled program for all
-particles), so a measured loop's posterior costs tens of seconds. BlackJAX's tempered SMC would
+particles): a move of 1000 particles costs about a quarter of a second on a measured loop, whose
+tempering took 8–29 stages of up to 100 moves (5–19 min). BlackJAX's tempered SMC would
 need q's log density and the whole loop inside one jitted JAX program; here q is the split normal
 of :mod:`._split_normal` (NumPy) and the posterior is the batched program emcee calls.
 """
@@ -30,6 +31,7 @@ import dataclasses
 import numpy as np
 
 from ._emcee import SampleResult
+from ._pareto import importance_pareto_k
 
 #: the acceptance the random walk's scale is tuned towards (Roberts, Gelman & Gilks 1997)
 TARGET_ACCEPTANCE = 0.234
@@ -64,14 +66,18 @@ class SMCResult(SampleResult):
     sampler = "smc"
 
 
+def _incremental_weights(log_ratio: np.ndarray, delta: float) -> np.ndarray:
+    """(p/q)^Δβ per particle, scaled to a largest of 1 (``log_ratio`` −inf: weight 0; Δβ > 0)."""
+    w = delta * log_ratio
+    return np.exp(w - np.max(w))
+
+
 def _next_beta(log_ratio: np.ndarray, beta: float, target_ess: float) -> float:
     """The largest β' ≤ 1 whose incremental weights (p/q)^(β'−β) keep an ESS of ``target_ess``
     of the particles (bisection; the ESS falls as β' grows)."""
-    finite = np.isfinite(log_ratio)
 
     def ess(delta: float) -> float:
-        w = np.where(finite, delta * np.where(finite, log_ratio, 0.0), -np.inf)
-        w = np.exp(w - np.max(w))
+        w = _incremental_weights(log_ratio, delta)
         return float(w.sum() ** 2 / (w**2).sum() / w.size)
 
     if ess(1.0 - beta) >= target_ess:
@@ -99,10 +105,6 @@ def _correlations(start: np.ndarray, now: np.ndarray) -> np.ndarray:
         return np.where(den > 0, np.abs((a * b).sum(axis=0)) / den, 0.0)
 
 
-def _max_correlation(start: np.ndarray, now: np.ndarray) -> float:
-    """The largest of :func:`_correlations`."""
-    return float(np.max(_correlations(start, now)))
-
 
 def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: int = 1000, *,
                  target_ess: float = 0.5, min_moves: int = 5, max_moves: int = 100,
@@ -111,8 +113,6 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
     """Draws of the posterior ``log_p`` (a function of (n, dim) u → (n,) log density, −inf where
     zero) by tempering from ``approximation`` (``draw(rng, n)``, ``log_density(x)``); see the
     module docstring. ``progress``: called with one line per stage."""
-    from ._pareto import importance_pareto_k
-
     names = tuple(names)
     x = np.asarray(approximation.draw(rng, n_particles), float)
     n, dim = x.shape
@@ -131,8 +131,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
             reason = "no particle has a finite posterior density"
             break
         new_beta = _next_beta(log_ratio, beta, target_ess)
-        w = np.where(np.isfinite(log_ratio), (new_beta - beta) * np.where(np.isfinite(log_ratio), log_ratio, 0.0), -np.inf)
-        w = np.exp(w - np.max(w))
+        w = _incremental_weights(log_ratio, new_beta - beta)
         idx = _systematic(w / w.sum(), rng)
         x, lp, lq = x[idx], lp[idx], lq[idx]
         beta = new_beta
@@ -162,11 +161,11 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
             if not independent:
                 rates.append(float(ok.mean()))
                 scale *= float(np.exp(rates[-1] - TARGET_ACCEPTANCE))  # the population's rate, not a particle's
-            if m >= min_moves and _max_correlation(start, x) <= decorrelation:
+            if m >= min_moves and np.max(_correlations(start, x)) <= decorrelation:
                 break
+        by_coordinate = _correlations(start, x)
         moves.append(m)
         accept.append(float(np.mean(rates)))
-        by_coordinate = _correlations(start, x)
         corr.append(float(np.max(by_coordinate)))
         slowest.append(int(np.argmax(by_coordinate)))
         if progress is not None:
@@ -182,8 +181,8 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
     return SMCResult(
         chain=x[:, None, :], log_prob=lp[:, None], tau=np.ones(dim), n_steps=int(sum(moves)), burn_in=0, thin=1,
         acceptance_fraction=np.array([float(np.mean(accept)) if accept else 0.0]), converged=converged,
-        reason=reason, names=tuple(names), seed=seed,
+        reason=reason, names=names, seed=seed,
         moves=(f"tempered SMC from the split normal: {n} particles, {len(betas)} stages, random-walk Metropolis "
-               "moves with the particles' covariance"),
+               "moves with the particles' covariance alternating with independence proposals from their Gaussian"),
         betas=tuple(betas), stage_moves=tuple(moves), stage_acceptance=tuple(accept), stage_correlation=tuple(corr),
         approximation_pareto_k=float(k_q))
