@@ -4,13 +4,19 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT ?= out
 
-.PHONY: run test test-extended bench bench-fit clean
-$(BIN)/.installed: pyproject.toml
+.PHONY: run test test-extended bench bench-fit clean lock
+# constraints.txt pins every package to the versions the committed numbers were produced with
+$(BIN)/.installed: pyproject.toml constraints.txt
 	@test -n "$(PY)" || { echo "no Python >= 3.12 found (see scripts/find-python.sh)"; exit 1; }
 	$(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[test]"
+	$(BIN)/python -m pip install --quiet -c constraints.txt -e ".[test]"
 	touch $@
+
+# re-pin constraints.txt to this environment's versions (then re-run what docs/ reports)
+lock: $(BIN)/.installed
+	{ sed -n '1,2p' constraints.txt; $(BIN)/python -m pip freeze --exclude-editable | grep -v '^pip=='; } > constraints.txt.new
+	mv constraints.txt.new constraints.txt
 
 run: $(BIN)/.installed
 	$(BIN)/python scripts/main_job.py -o $(OUT)
