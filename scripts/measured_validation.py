@@ -586,6 +586,33 @@ def pareto_k_text(rows: list[dict]) -> str:
                if good < ks.size else "their intervals are the posterior's."))
 
 
+def rival_text(rows: list[dict]) -> str:
+    """A sentence on the loops whose starts reached another optimum the data support about as
+    well (the fit's diagnostics.map_other_optima, fit/_map.py rival_optima); empty when no row
+    has the record."""
+    have = [r for r in rows if r["diagnostics"].get("map_other_optima") is not None]
+    if not have:
+        return ""
+    rivals = {r["unit"]: [o for o in r["diagnostics"]["map_other_optima"] if o["rival"]] for r in have}
+    flagged = [u for u, o in rivals.items() if o]
+    # the starts' other end points at least a posterior sd from the MAP (closer: the MAP, stopped short)
+    counts = [sum(o["distance_sd"] >= 1.0 for o in r["diagnostics"]["map_other_optima"]) for r in have]
+    short = [sum(o["distance_sd"] >= 1.0 and not o.get("converged", True) for o in r["diagnostics"]["map_other_optima"])
+             for r in have]
+    text = (f"Besides the MAP the starts ended at {min(counts)}–{max(counts)} other points at least a posterior sd "
+            f"from it (median {np.median(counts):.0f}; {sum(short)} of them short of the solver's tolerance); on "
+            f"{len(flagged)} of {len(have)} "
+            f"loops another converged optimum lies 3 posterior sd or more from the MAP and within 3 of its log "
+            f"posterior as widened (`map_rival_note`)")
+    if flagged:
+        gaps = [min(o["log_density_gap_widened"] for o in rivals[u]) for u in flagged]
+        dist = [o["distance_sd"] for u in flagged for o in rivals[u]]
+        text += (f": the closest such optimum {min(gaps):.2g}–{max(gaps):.2g} below the MAP's log posterior, "
+                 f"{min(dist):.0f}–{max(dist):.0f} sd away. The intervals are drawn around one optimum and do not reach "
+                 f"the others the data support about as well")
+    return text + "."
+
+
 def _short_text(rows: list[dict]) -> str:
     """The summary's note on MAPs that stopped short (rows fitted since the fit records it)."""
     short = [(r["unit"], r["diagnostics"]["map_newton_step_sd"]) for r in rows
@@ -840,6 +867,9 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
     k_text = pareto_k_text(rows)
     if k_text:
         lines += ["", k_text]
+    optima_text = rival_text(rows)
+    if optima_text:
+        lines += ["", optima_text]
     env_text = environment_text(rows)
     if env_text:
         lines += ["", env_text]

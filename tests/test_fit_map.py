@@ -57,6 +57,33 @@ def test_shared_later_passes_give_the_map_of_every_start_run_alone(problem, monk
     assert np.max(np.abs(result.u - best_u) / np.maximum(np.abs(best_u), 1.0)) < 1e-5
 
 
+def test_the_map_records_the_distinct_optima_of_its_starts_best_first(problem):
+    result = fit_map(problem, n_starts=4, seed=0, noise_passes=2)
+    lds = [ld for ld, _, _ in result.optima]
+    assert result.optima and lds == sorted(lds, reverse=True)
+    assert lds[0] == result.log_density and np.array_equal(result.optima[0][1], result.u)
+    assert result.optima[0][2] == result.converged
+    assert len(result.optima) == len({ld for ld, _ in result.starts if np.isfinite(ld)})
+
+
+def test_rival_optima_are_far_and_about_as_likely_as_widened():
+    cov = np.diag([1.0, 4.0])  # sds 1 and 2
+    best = np.array([0.0, 0.0, 9.0])  # the last entry is outside the physics block
+    optima = [(-100.0, best, True), (-101.0, np.array([0.0, 8.0, 0.0]), True), (-100.5, np.array([1.0, 0.0, 0.0]), True),
+              (-200.0, np.array([10.0, 0.0, 0.0]), True)]
+    rivals = _map.rival_optima(best, -100.0, optima, cov)
+    assert [r["distance_sd"] for r in rivals] == pytest.approx([4.0, 1.0, 10.0])  # the MAP itself left out
+    assert [r["rival"] for r in rivals] == [True, False, False]  # near: within reach; 100 nats down: not
+    assert "1 other optimum" in _map.rival_note(rivals) and _map.rival_note(rivals[1:]) == ""
+    # widened for misfit (likelihood to the power 1/20), the distant optimum 100 nats down is 5 down
+    widened = _map.rival_optima(best, -100.0, optima, cov, likelihood_power=1 / 20)
+    assert widened[2]["log_density_gap_widened"] == pytest.approx(5.0) and not widened[2]["rival"]
+    assert _map.rival_optima(best, -100.0, optima, cov, likelihood_power=1 / 50)[2]["rival"]
+    # a start stopped short of its tolerance is listed, never a rival: it may be on its way to the MAP
+    short = _map.rival_optima(best, -100.0, [optima[0], (-101.0, optima[1][1], False)], cov)
+    assert short[0]["converged"] is False and short[0]["rival"] is False
+
+
 def test_the_map_is_the_log_densitys_optimum_in_the_physics(problem):
     """LM minimises the whitened residuals and the physics' share of −Σ log scale_i (the
     errors-in-variables slope widens a sample's scale where the loop is steep): without that

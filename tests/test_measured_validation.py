@@ -501,3 +501,20 @@ def test_the_page_names_the_environment_its_fits_repeat_on():
     other = [dict(r, environment=dict(r["environment"], jax="0.0.0")) if i == 0 else r for i, r in enumerate(rows)]
     assert "(2 environments among the rows" in mv.environment_text(other)
     assert mv.environment_text([{k: v for k, v in r.items() if k != "environment"} for r in rows]) == ""
+
+
+def test_the_table_counts_the_loops_whose_starts_reached_a_rival_optimum():
+    """rows carrying the fit's diagnostics.map_other_optima get a sentence counting the optima
+    and the loops with a rival (far, about as likely as widened); rows without it none."""
+    def row(unit, others):
+        return {"unit": unit, "diagnostics": {"map_other_optima": others}}
+
+    far = {"log_density_gap": 20.0, "log_density_gap_widened": 0.8, "distance_sd": 240.0, "converged": True, "rival": True}
+    down = {"log_density_gap": 900.0, "log_density_gap_widened": 40.0, "distance_sd": 12.0, "converged": False,
+            "rival": False}
+    same = {"log_density_gap": 1e-6, "log_density_gap_widened": 1e-7, "distance_sd": 0.01, "converged": True,
+            "rival": False}
+    text = mv.rival_text([row("a", [far, down]), row("b", [same]), row("c", [])])
+    assert "ended at 0–2 other points at least a posterior sd from it (median 0; 1 of them short" in text
+    assert "on 1 of 3 loops another converged optimum" in text and "0.8–0.8 below" in text and "240–240 sd away" in text
+    assert mv.rival_text([{"unit": "a", "diagnostics": {}}]) == ""

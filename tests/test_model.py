@@ -382,9 +382,12 @@ def test_three_segment_slopes():
 
 
 def test_power_law_and_asymmetry():
-    pl = m.PowerLawCompliance()
-    p = dict(power_scale=1e5, power_exponent=1.5)
-    assert float(pl(p, jnp.array(50.0))) == pytest.approx((50.0 / 1e5 + 1e-300) ** (1 / 1.5), rel=1e-4)
+    pl = m.PowerLawCompliance(reference_torque_Nm=20.0)
+    p = dict(elastic_rated_twist=2e-3, power_exponent=1.5)
+    assert float(pl(p, jnp.array(20.0))) == pytest.approx(2e-3, rel=1e-4)  # θ_r at the reference torque
+    assert float(pl(p, jnp.array(50.0))) == pytest.approx(2e-3 * (50.0 / 20.0) ** (1 / 1.5), rel=1e-4)
+    with pytest.raises(ValueError, match="reference_torque_Nm"):
+        m.PowerLawCompliance(reference_torque_Nm=0.0)
     assert float(pl(p, jnp.array(-50.0))) == pytest.approx(-float(pl(p, jnp.array(50.0))))
     asym = m.AsymmetricCompliance(m.LinearCompliance(), switch_width_Nm=1.0)
     q = dict(stiffness=1e5, compliance_asymmetry=0.1)

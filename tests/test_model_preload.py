@@ -40,8 +40,8 @@ def test_stiffer_inside_the_lift_off_torque_and_the_base_slope_beyond():
 def test_increasing_on_a_power_law_and_the_fit_sees_gradients_in_both_parameters():
     import jax
 
-    curve = PreloadedCompliance(PowerLawCompliance())
-    params = {"power_scale": 600.0, "power_exponent": 1.6, "preload_stiffening": 0.8, "preload_lift_torque": 3.0}
+    curve = PreloadedCompliance(PowerLawCompliance(reference_torque_Nm=10.0))
+    params = {"elastic_rated_twist": (10.0 / 600.0) ** (1 / 1.6), "power_exponent": 1.6, "preload_stiffening": 0.8, "preload_lift_torque": 3.0}
     tau = jnp.linspace(-12.0, 12.0, 4801)
     theta = np.asarray(curve(params, tau))
     assert np.all(np.diff(theta) > 0)

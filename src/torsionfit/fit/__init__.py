@@ -10,6 +10,8 @@ from ._map import (
     laplace_from_parts as laplace_from_parts,
     log_density as log_density,
     map_starts as map_starts,
+    rival_note as rival_note,
+    rival_optima as rival_optima,
 )
 from ._prior import build_priors as build_priors, first_look_stiffness as first_look_stiffness
 from ._problem import (

@@ -293,6 +293,8 @@ class MapResult:
     starts: list = field(default_factory=list)  # (log_density, message) per start (shared: same optimum)
     #: not converged: the Gauss–Newton step from u in posterior sd (:func:`newton_step`); None when converged
     newton_step_sd: float | None = None
+    #: (log density, u, converged) of each distinct optimum the starts reached, highest first
+    optima: tuple = ()
 
     @property
     def names(self) -> list[str]:
@@ -422,8 +424,8 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     (k, n_nonlinear) further starting points tried first (e.g. a nested model's optimum), or
     (k, dim) with their noise block, which their first pass then uses instead of iid noise.
     ``max_steps`` caps each start's first pass, ``polish_steps`` the later passes, which run
-    from near an optimum for the distinct optima only: on a long ridge (the compliance curve's
-    scale and exponent of a measured loop) LM may need more there (``fit_campaign`` gives
+    from near an optimum for the distinct optima only: on a measured loop's long
+    ridges LM may need more there (``fit_campaign`` gives
     :attr:`FitOptions.map_steps` for both; diagnose's screening fits keep these defaults). Each
     budget is part of a compiled program: equal budgets compile the solve once. ``continuations``:
     where the chosen optimum's last pass ended at its budget without meeting the tolerance, up to
@@ -467,4 +469,51 @@ def fit_map(problem: FitProblem, run_names=None, *, n_starts: int = 4, seed: int
     values = {k: np.asarray(v) for k, v in values.items()}
     return MapResult(problem=problem, run_names=run_names, u=u, cov=cov, values=values,
                      log_density=ld, converged=ok, message=message, starts=list(zip(lds, messages)),
-                     newton_step_sd=step_sd)
+                     newton_step_sd=step_sd,
+                     optima=tuple(sorted(((f[1], f[0], f[2]) for f in finals.values() if np.isfinite(f[1])),
+                                         key=lambda o: -o[0])))
+
+
+#: a rival optimum this many posterior sd or more from the MAP lies beyond the intervals' reach
+RIVAL_DISTANCE_SD = 3.0
+#: ... and within this many nats of its log posterior (as widened) carries comparable mass
+RIVAL_LOG_DENSITY_GAP = 3.0
+
+
+def rival_optima(best_u, best_log_density: float, optima, cov_physics, likelihood_power: float = 1.0) -> list[dict]:
+    """The optima in ``optima`` ((log density, u, converged) of one problem, e.g.
+    :attr:`MapResult.optima`) other than the MAP ``best_u``: for each, its log posterior below the MAP's (``log_density_gap``,
+    as the starts' problem scores it, and ``log_density_gap_widened``, times ``likelihood_power``:
+    the gap of the posterior the intervals are drawn from when it was widened for misfit) and its
+    distance from the MAP in that posterior's sd (``distance_sd``: Mahalanobis over the physics
+    block, ``cov_physics`` its covariance); ``rival``: converged, far (≥ :data:`RIVAL_DISTANCE_SD`)
+    and close in density (≤ :data:`RIVAL_LOG_DENSITY_GAP`): the intervals, drawn around one
+    optimum, do not reach another the data support about as well. A start that stopped short of its
+    tolerance is listed (``converged`` false), never a rival: it may be on its way to the MAP."""
+    best_u = np.asarray(best_u, float)
+    n = np.shape(cov_physics)[0]
+    precision = np.linalg.pinv(np.asarray(cov_physics, float))
+    out = []
+    for ld, u, converged in optima:
+        d = np.asarray(u, float)[:n] - best_u[:n]
+        distance = float(np.sqrt(max(d @ precision @ d, 0.0)))
+        if distance < 1e-6:
+            continue  # the MAP itself
+        gap = float(best_log_density - ld)
+        widened = gap * float(likelihood_power)
+        out.append({"log_density_gap": gap, "log_density_gap_widened": widened, "distance_sd": distance,
+                    "converged": bool(converged),
+                    "rival": bool(converged and distance >= RIVAL_DISTANCE_SD and widened <= RIVAL_LOG_DENSITY_GAP)})
+    return out
+
+
+def rival_note(rivals: list[dict]) -> str:
+    """One line when :func:`rival_optima` found a rival; empty otherwise."""
+    close = [r for r in rivals if r["rival"]]
+    if not close:
+        return ""
+    r = min(close, key=lambda r: r["log_density_gap_widened"])
+    return (f"the starts reached {len(close)} other optimum(s) the data support about as well: the closest "
+            f"{r['log_density_gap_widened']:.2g} below the MAP's log posterior (as widened), {r['distance_sd']:.0f} "
+            f"posterior sd from it; the intervals are drawn around one of them, and its predictions can differ "
+            f"from theirs — more starts (--starts) show how many there are")

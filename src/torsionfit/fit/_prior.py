@@ -108,7 +108,7 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         "stiffness": (log(k0), 1.5),
         "k1": (log(k0), 1.5), "k2": (log(k0), 1.5), "k3": (log(k0), 1.5),
         "t1": (log(0.25 * rated), 1.0), "t2_minus_t1": (log(0.5 * rated), 1.0),
-        "power_scale": (log(k0), 3.0), "power_exponent": (0.0, 0.5),
+        "elastic_rated_twist": (log(twist0), 1.5), "power_exponent": (0.0, 0.5),
         "compliance_asymmetry": (0.0, 0.3),
         "friction_torque": (log(0.02 * rated), 2.0),
         "dahl_torque": (log(0.02 * rated), 2.0),

@@ -32,7 +32,7 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     if nonlin in (True, "three_segment"):
         compliance = ThreeSegmentCompliance()
     elif nonlin == "power_law":
-        compliance = PowerLawCompliance()
+        compliance = PowerLawCompliance(reference_torque_Nm=float(rated_torque_Nm))
     elif nonlin not in (None, False):
         raise InputError(f"[effects].stiffness_nonlinearity: expected 'three_segment' or 'power_law', got {nonlin!r}")
     # the preloaded second path changes the spring itself; an asymmetry scales the result

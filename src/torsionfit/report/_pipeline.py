@@ -20,7 +20,7 @@ from .._x64 import in_float64
 from .._chunks import map_chunks
 from .._errors import InputError
 from .._provenance import provenance
-from ..fit import NoiseOptions, build_problem, fit_map
+from ..fit import NoiseOptions, build_problem, fit_map, rival_note, rival_optima
 from ..fit import _transform as tr
 from ..fit._map import nested_start
 from ..fit._prior import cycle_friction_readings_Nm
@@ -284,6 +284,7 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
                          warm_starts=warm, **options.map_budget)
     if options.hop_to_the_hold:
         map_result = hop_to_the_hold(campaign, problem, map_result, options, seed)
+    first = map_result  # the optima the starts reached, all under one objective
     if options.noise.cycle_class_noise:
         # the classes' noise levels read at this optimum, the fit repeated with them
         problem, map_result = refit_with_class_noise(problem, map_result, seed=seed, **options.map_budget)
@@ -291,7 +292,23 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
         problem, map_result = widen_for_misfit(problem, map_result)
     log.info("MAP %s; now the posterior (%s) and the metrics", "converged" if map_result.converged
              else f"not converged ({map_result.message})", options.sampler)
-    return finish_fit(campaign, options, model, problem, map_result, seed)
+    fit = finish_fit(campaign, options, model, problem, map_result, seed)
+    _record_rival_optima(fit.diagnostics, first, problem, map_result)
+    return fit
+
+
+def _record_rival_optima(diagnostics: dict, first, problem, map_result) -> None:
+    """The other optima the starts reached (fit/_map.py :func:`rival_optima`), scored in the
+    starts' problem, their distance in the final posterior's sd; a note (and a warning) when one
+    the data support about as well lies beyond the intervals' reach."""
+    n = problem.n_nonlinear
+    rivals = rival_optima(first.u, first.log_density, first.optima, np.asarray(map_result.cov)[:n, :n],
+                          float(problem.likelihood_power))
+    diagnostics["map_other_optima"] = rivals
+    note = rival_note(rivals)
+    if note:
+        diagnostics["map_rival_note"] = note
+        warnings.warn(note)
 
 
 def sampler_kwargs(options: FitOptions, seed: int) -> dict:
@@ -824,6 +841,8 @@ def summary_table(doc: dict) -> str:
         lines.append(f"laplace: {d['laplace_note']}")
     if d.get("laplace_pareto_k_note"):
         lines.append(f"laplace: {d['laplace_pareto_k_note']}")
+    if d.get("map_rival_note"):
+        lines.append(f"optima: {d['map_rival_note']}")
     if d.get("metrics_off_data_note"):
         lines.append(f"off the data: {d['metrics_off_data_note']}")
     for key in ("friction_hook_note", "gap_segment_note"):
