@@ -12,8 +12,9 @@ import torsionfit
 from torsionfit._provenance import command_line, environment
 from torsionfit.bench import load_bench, simulate
 from torsionfit.cli import EXIT_INPUT_ERROR, main
+from torsionfit.fit import rival_note
 from torsionfit.model import model_with_effects
-from torsionfit.report import FitOptions, derived_metrics_for, fit_campaign, fit_json
+from torsionfit.report import FitOptions, derived_metrics_for, fit_campaign, fit_json, summary_table
 
 BENCH = Path(__file__).parent / "benches" / "rv_small_base.toml"
 REQUIRED = ("stiffness_rated", "stiffness_elastic", "lost_motion", "backlash", "geometric_gap", "friction_torque")
@@ -140,6 +141,20 @@ def test_fit_json_has_the_contract(laplace_fit):
     assert set(doc["diagnostics"]) >= {"converged", "rhat_max", "ess_min"}
     assert set(doc["rmse"]) == {"hyst-5", "te-5rpm-fw"}
     assert {"twist_elastic_at_rated", "twist_friction_at_rated", "twist_geometric_at_rated"} <= set(doc["components"])
+
+
+def test_the_fit_reports_its_starts_other_optima_and_a_rival_in_the_summary(laplace_fit):
+    """On the virtual bench (SYNTHETIC; the model's own physics) the starts reach no rival: every
+    other end point is the MAP or far below it. A rival in the diagnostics is printed as `optima:`."""
+    _, fit = laplace_fit
+    doc = json.loads(json.dumps(fit_json(fit)))
+    others = doc["diagnostics"]["map_other_optima"]
+    assert isinstance(others, list) and not any(o["rival"] for o in others)
+    assert "map_rival_note" not in doc["diagnostics"] and "optima:" not in summary_table(doc)
+    rival = {"log_density_gap": 20.0, "log_density_gap_widened": 0.8, "distance_sd": 240.0, "converged": True, "rival": True}
+    doc["diagnostics"]["map_rival_note"] = rival_note([rival])
+    line = next(x for x in summary_table(doc).splitlines() if x.startswith("optima:"))
+    assert "0.8 below the MAP's log posterior (as widened), 240 posterior sd from it" in line
 
 
 def test_laplace_fit_recovers_the_bench_truth(laplace_fit):
