@@ -596,9 +596,9 @@ def rival_text(rows: list[dict]) -> str:
     rivals = {r["unit"]: [o for o in r["diagnostics"]["map_other_optima"] if o["rival"]] for r in have}
     flagged = [u for u, o in rivals.items() if o]
     # the starts' other end points at least a posterior sd from the MAP (closer: the MAP, stopped short)
-    counts = [sum(o["distance_sd"] >= 1.0 for o in r["diagnostics"]["map_other_optima"]) for r in have]
-    short = [sum(o["distance_sd"] >= 1.0 and not o.get("converged", True) for o in r["diagnostics"]["map_other_optima"])
-             for r in have]
+    away = [[o for o in r["diagnostics"]["map_other_optima"] if o["distance_sd"] >= 1.0] for r in have]
+    counts = [len(a) for a in away]
+    short = [sum(not o["converged"] for o in a) for a in away]
     text = (f"Besides the MAP the starts ended at {min(counts)}–{max(counts)} other points at least a posterior sd "
             f"from it (median {np.median(counts):.0f}; {sum(short)} of them short of the solver's tolerance); on "
             f"{len(flagged)} of {len(have)} "

@@ -105,7 +105,6 @@ def _correlations(start: np.ndarray, now: np.ndarray) -> np.ndarray:
         return np.where(den > 0, np.abs((a * b).sum(axis=0)) / den, 0.0)
 
 
-
 def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: int = 1000, *,
                  target_ess: float = 0.5, min_moves: int = 5, max_moves: int = 100,
                  decorrelation: float = 0.1, max_stages: int = 200, names=(), seed: int | None = None,
