@@ -42,6 +42,10 @@ def trail_rows(unit: str, doc: dict, seconds: float) -> list[str]:
         outgained = keep.earns_keep(s["delta_elpd"], s["delta_elpd_se"], s["rmse_before"], s["rmse_after"])
         rows.append(f"| | tried, {'outgained' if outgained else 'not kept'}: {s['effect']} | {s['evidence']['log10_p']:.1f} | {s['rmse_before']:.0f} → "
                     f"{s['rmse_after']:.0f} | | {s['delta_elpd']:.0f} ± {s['delta_elpd_se']:.0f} | |")
+    for r in doc.get("removals", []):
+        verdict = "dropped (redundant)" if r["dropped"] else "checked, kept"
+        rows.append(f"| | {verdict}: {r['effect']} | | {r['rmse_without']:.0f} → {r['rmse_with']:.0f} | | "
+                    f"{r['delta_elpd']:.0f} ± {r['delta_elpd_se']:.0f} | |")
     left = doc["unexplained_description"] if doc["unexplained"] else "nothing significant"
     rows.append(f"| | left unexplained: {left} | | {doc['rmse_final']:.0f} | | | |")
     return rows
@@ -84,12 +88,13 @@ def diagnose_unit(unit: str, args) -> tuple[list[str], dict, str]:
     options = DiagnoseOptions(noise=noise_options(args), candidates_per_step=args.candidates_per_step,
                               max_candidates_first_step=args.max_candidates_first_step,
                               max_candidates_per_step=args.max_candidates_per_step,
-                              robust_signatures=not args.least_squares_signatures)
+                              robust_signatures=not args.least_squares_signatures, backward=not args.no_backward)
     result = diagnose(campaign, options, seed=args.seed, progress=say)
     doc = write_diagnosis(result, campaign, args.output / unit)
     seconds = time.perf_counter() - t0
     entry = {k: doc[k] for k in ("label", "added", "unexplained", "unexplained_description", "rmse_base", "rmse_final")}
     entry["steps"] = [{k: s[k] for k in ("effect", "rmse_before", "rmse_after", "delta_elpd", "delta_elpd_se")} for s in doc["steps"]]
+    entry["dropped"] = [r["effect"] for r in doc["removals"] if r["dropped"]]
     entry["seconds"] = seconds
     # each loop compiles its own programs (its lengths): kept across 21 loops they exhausted
     # the compiler's memory at the 13th
@@ -123,6 +128,9 @@ def main(argv=None) -> int:
     parser.add_argument("--least-squares-signatures", action="store_true",
                         help="signatures by least squares alone, against the mean-square variogram's noise, which counts "
                              "the jumps (default: where a residual moves in jumps, each also tested winsorised)")
+    parser.add_argument("--no-backward", action="store_true",
+                        help="no backward checks: the greedy trail alone (default: when it stops, each kept effect but "
+                             "the last is refitted out, one the others made redundant is dropped and the trail goes on)")
     parser.add_argument("--refit-each", action="store_true",
                         help="no trail: refit the base model plus each effect of the unit's validation model alone, "
                              "whatever its signature, and print the ΔELPD each earns (what the keep rule sees)")

@@ -529,3 +529,17 @@ def test_the_summary_prints_the_final_models_widening_and_notes():
         assert f"  {label}: <{key}>" in text
     doc["final_metrics"]["misfit_inflation"] = 1.0
     assert "tempered" not in summary_text(doc)
+
+
+def test_the_summary_prints_each_backward_check():
+    """A dropped effect and one that keeps earning each get a line, with what the check compared."""
+    check = {"effect": "drift", "dropped": True, "effects_with": ["drift", "gap_hold"], "rmse_with": 320.0,
+             "rmse_without": 324.0, "delta_elpd": 2.0, "delta_elpd_se": 3.0, "criterion": "psis-loo",
+             "criterion_reason": ""}
+    doc = {"rmse_base": 10.0, "steps": [], "rejected": [], "rmse_final": 10.0, "noise_estimate": 1.0, "added": [],
+           "unexplained": False, "notes": [],
+           "removals": [check, {**check, "effect": "gap_hold", "dropped": False, "delta_elpd": 90.0}]}
+    lines = summary_text(doc).splitlines()
+    assert any(line.startswith("- drift") and "dropped, no longer earns its keep: ΔELPD 2.0 ± 3.0" in line
+               and "324″ without it, 320″ with it" in line for line in lines), lines
+    assert any(line.startswith("- gap_hold") and "still earns its keep: ΔELPD 90.0" in line for line in lines), lines

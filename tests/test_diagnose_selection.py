@@ -462,3 +462,73 @@ def test_candidates_are_refitted_in_the_order_of_their_least_squares_test():
     assert _gain_rank(robust(-50.0, -30.0, search=0.7)) == pytest.approx(-50.0 + 0.7)
     alone = Evidence("x", 1.0, 1, -12.3, 0.1, "", {"log10_p_by_test": {"least-squares": -13.0}})
     assert _gain_rank(alone) == -12.3 and _gain_rank(Evidence("x", 0.0, 0, 0.0, 0.0, "")) == 0.0
+
+
+def test_the_backward_check_drops_an_effect_a_later_one_made_redundant(monkeypatch):
+    """The trail is greedy: an effect kept early (``drift``) can take a misfit a later one
+    (``gap``) explains better. When the trail stops, each kept effect but the last is refitted
+    out of the final model; the one that no longer earns its keep is dropped, the trail goes on
+    with the room it leaves (``max_effects``), and never takes it again. Stand-in fits whose
+    ELPD is a function of the set of effects: the rule alone."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from torsionfit.diagnose import Effect, _loop
+    from torsionfit.diagnose._selection import Comparison
+    from torsionfit.diagnose._signature import Evidence
+
+    def elpd(effects) -> float:
+        e = set(effects)
+        # drift explains what the gap explains, and less of it; with the gap it adds 2
+        return (60.0 if "gap" in e else 40.0 if "drift" in e else 0.0) + (2.0 if {"gap", "drift"} <= e else 0.0) \
+            + (30.0 if "creep" in e else 0.0) + (25.0 if "speed" in e else 0.0)
+
+    strength = {"drift": -30.0, "gap": -20.0, "creep": -10.0, "speed": -9.0}
+
+    class Stand(Effect):
+        def __init__(self, name):
+            self.name = name
+
+        def signature(self, ctx, alpha):
+            return Evidence(self.name, 0.0, 1, strength[self.name], 0.1, "")
+
+        def extend(self, effects, evidence, ctx):
+            return {**effects, self.name: True}
+
+    catalog = tuple(Stand(n) for n in strength)
+    calls = []
+
+    def fit_with(campaign, effects, options, seed, warm=None, start_values=None):
+        calls.append(tuple(sorted(effects)))
+        return SimpleNamespace(effects=dict(effects), context=SimpleNamespace(runs=()), score=tuple(effects),
+                               rmse_arcsec=1.0, max_abs_arcsec=1.0, rmse_per_run={})
+
+    monkeypatch.setattr(_loop, "fit_with", fit_with)
+    monkeypatch.setattr(_loop, "compare", lambda before, after: Comparison(elpd(after) - elpd(before), 1.0, "stand-in", ""))
+    monkeypatch.setattr(_loop, "_signatures", lambda ctx, options, added: [
+        (e, e.signature(ctx, options.alpha)) for e in options.catalog if e.name not in added])
+    monkeypatch.setattr(_loop, "noise_rmse_arcsec", lambda ctx: 1.0)
+    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added: [])
+    monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
+    # one candidate a step, room for two effects: drift (the strongest signature) then the gap
+    options = _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=1, max_candidates_first_step=1,
+                                    max_candidates_per_step=1, max_effects=2)
+    d = _loop.diagnose(SimpleNamespace(), options, seed=0)
+    # with the gap in, drift earns 2: dropped, and its room goes to creep; the check after that
+    # refits the gap out (creep was the last step: compared with exactly the model without it)
+    assert [s.effect for s in d.steps] == ["gap", "creep"], [s.effect for s in d.steps]
+    assert d.final.effects == {"gap": True, "creep": True}
+    assert [(r.effect, r.dropped) for r in d.removals] == [("drift", True), ("gap", False)]
+    drop = d.removals[0]
+    assert drop.delta_elpd == 2.0 and drop.without.effects == {"gap": True}
+    assert ("drift", "gap") in calls and ("creep", "drift", "gap") not in calls  # never taken again
+    assert calls.count(("creep",)) == 1  # the gap's backward check
+    # off: the greedy trail as it was
+    d = _loop.diagnose(SimpleNamespace(), replace(options, backward=False), seed=0)
+    assert [s.effect for s in d.steps] == ["drift", "gap"] and d.removals == []
+    # an effect that keeps earning is never dropped: the check refits it out once and stops
+    monkeypatch.setattr(_loop, "compare", lambda before, after: Comparison(
+        sum(20.0 for n in set(after) - set(before)) - sum(20.0 for n in set(before) - set(after)), 1.0, "stand-in", ""))
+    d = _loop.diagnose(SimpleNamespace(), options, seed=0)
+    assert [s.effect for s in d.steps] == ["drift", "gap"]
+    assert [(r.effect, r.dropped, r.delta_elpd) for r in d.removals] == [("drift", False, 20.0)]

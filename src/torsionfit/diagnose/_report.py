@@ -43,6 +43,12 @@ def diagnose_json(d: Diagnosis, campaign) -> dict:
              "rmse_after": s.after.rmse_arcsec, **s.comparison.as_dict()}
             for s in d.rejected
         ],
+        # each kept effect refitted out of a later model (DiagnoseOptions.backward): ΔELPD of keeping it
+        "removals": [
+            {"effect": r.effect, "dropped": r.dropped, "effects_with": sorted(r.within.effects),
+             "rmse_with": r.within.rmse_arcsec, "rmse_without": r.without.rmse_arcsec, **r.comparison.as_dict()}
+            for r in d.removals
+        ],
         "unexplained": d.unexplained,
         "unexplained_description": d.unexplained_description,
         "notes": list(d.notes),
@@ -66,6 +72,11 @@ def summary_text(doc: dict) -> str:
     for s in doc["rejected"]:
         lines.append(f"  {s['effect']:24s} tried, not kept: ΔELPD {s['delta_elpd']:.1f} ± {s['delta_elpd_se']:.1f} ({s['criterion']}), "
                      f"RMSE {s['rmse_before']:.3g}″ → {s['rmse_after']:.3g}″")
+    for r in doc.get("removals", []):
+        verdict = "dropped, no longer earns its keep" if r["dropped"] else "checked, still earns its keep"
+        lines.append(f"- {r['effect']:24s} {verdict}: ΔELPD {r['delta_elpd']:.1f} ± {r['delta_elpd_se']:.1f} "
+                     f"({r['criterion']}) over the model without it, RMSE {r['rmse_without']:.3g}″ without it, "
+                     f"{r['rmse_with']:.3g}″ with it")
     lines.append(f"final: RMSE {doc['rmse_final']:.3g}″ (noise estimate {doc['noise_estimate']:.3g}″), "
                  f"effects added: {', '.join(doc['added']) or 'none'}")
     if doc.get("final_metrics"):
