@@ -153,7 +153,9 @@ def main(argv=None) -> int:
         "Closing the loop on measured loops (REAL data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0; "
         f"block means of {args.decimate} samples; rated torque 20 N·m assumed; {NOISE_TEXT[args.ar1]}"
         + (f", Student-t with ν = {args.student_t:g}" if args.student_t else "")
-        + (", least-squares signatures" if args.least_squares_signatures else ", robust signatures") + "), "
+        + (", least-squares signatures" if args.least_squares_signatures else ", robust signatures")
+        + (", no backward checks (`--no-backward`)" if args.no_backward else ", backward checks: each kept effect but the "
+           "last refitted out of the final model, a redundant one dropped") + "), "
         f"`scripts/diagnose_measured.py`, seed {args.seed}.",
         "",
         "| unit | step | log10 p of the signature | RMSE (arcsec) | max \\|residual\\| (arcsec) | ΔELPD ± SE | wall (s) |",
