@@ -59,7 +59,7 @@ def _fit_both(unit: str, particles: int, seed: int) -> dict:
                                 "data": (metrics[k].get("data") or {}).get("value")} for k in METRICS if k in metrics},
                 **({"pareto_k": d.get("laplace_pareto_k")} if sampler == "laplace" else
                    {k: d[k] for k in ("smc_betas", "smc_moves", "smc_acceptance", "smc_correlation_max",
-                                      "approximation_pareto_k")}),
+                                      "approximation_pareto_k", "smc_moves_kind")}),
             }
     return out
 
@@ -74,7 +74,8 @@ def _metric(entry: dict, name: str) -> str:
 def markdown(rows: list[dict], particles: int) -> str:
     lines = [
         f"Tempered SMC against the split normal on measured loops ({mv.SOURCE}), each fitted as the validation fits it "
-        f"(`scripts/measured_smc.py`; SMC: {particles} particles, at most 100 moves per stage). k: the Pareto k of "
+        f"(`scripts/measured_smc.py`; SMC: {particles} particles, HMC moves of 8 leapfrog steps with the particles' "
+        "covariance as inverse mass matrix, at most 100 moves per stage). k: the Pareto k of "
         "posterior/split normal at the split normal's draws (≤ 0.7: they stand for the posterior); stages: tempering "
         "steps from the split normal to the posterior; correlation: the largest correlation of a coordinate with its "
         "value at the start of its stage after the moves (converged only when at most 0.1 at every stage); metrics: "
@@ -83,8 +84,8 @@ def markdown(rows: list[dict], particles: int) -> str:
         "",
         "| unit | k | split normal: play (arcmin) | SMC: play | split normal: stiffness_loading (N·m/arcmin) | "
         "SMC: stiffness_loading | data: play / stiffness_loading | off (split normal / SMC) | SMC stages | "
-        "SMC correlation | SMC converged | seconds (split normal / SMC) |",
-        "| --- | ---: | --- | --- | --- | --- | --- | --- | ---: | ---: | --- | --- |",
+        "SMC moves per stage | SMC correlation | SMC converged | seconds (split normal / SMC) |",
+        "| --- | ---: | --- | --- | --- | --- | --- | --- | ---: | --- | ---: | --- | --- |",
     ]
     for r in sorted(rows, key=lambda r: r["unit"]):
         a, b = r["laplace"], r["smc"]
@@ -94,7 +95,8 @@ def markdown(rows: list[dict], particles: int) -> str:
         lines.append(
             f"| {r['unit']} | {b['approximation_pareto_k']:.2f} | {_metric(a, 'play')} | {_metric(b, 'play')} | "
             f"{_metric(a, 'stiffness_loading')} | {_metric(b, 'stiffness_loading')} | {data} | {off} | "
-            f"{len(b['smc_betas'])} | {b['smc_correlation_max']:.2f} | {b['converged']} | "
+            f"{len(b['smc_betas'])} | {', '.join(map(str, b['smc_moves']))} | {b['smc_correlation_max']:.2f} | "
+            f"{b['converged']} | "
             f"{a['seconds']:.0f} / {b['seconds']:.0f} |")
     lines += ["", mv.environment_text(rows)]
     not_conv = [r for r in rows if not r["smc"]["converged"]]

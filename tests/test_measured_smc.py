@@ -31,6 +31,6 @@ def test_the_page_sets_both_samplers_side_by_side_and_names_a_run_that_did_not_m
     text = ms.markdown([row], 1000)
     line = next(l for l in text.splitlines() if l.startswith("| split-pccf-preload2-pos5"))
     assert "| 1.80 |" in line and "0.182 (0.177–0.1878)" in line and "0.1829 (0.1824–0.1835)" in line
-    assert "| compliance_loading_neg / none |" in line and "| 3 | 0.62 | False |" in line
+    assert "| compliance_loading_neg / none |" in line and "| 3 | 100, 100, 100 | 0.62 | False |" in line
     assert "split-pccf-preload2-pos5: the particles did not forget their start" in text
     assert "Computed with Python" in text and "REAL" in text

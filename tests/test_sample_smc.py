@@ -18,6 +18,37 @@ def _target(mean, cov):
     return log_p
 
 
+def _target_and_grad(mean, cov):
+    """(log density, gradient) of N(mean, cov) per row."""
+    prec = np.linalg.inv(cov)
+
+    def both(x):
+        d = np.atleast_2d(x) - mean
+        return -0.5 * np.einsum("ni,ij,nj->n", d, prec, d), -d @ prec
+
+    return both
+
+
+def _banana(b=0.5):
+    """A curved ridge in 4 dimensions (Haario et al. 1999): x₁ ~ N(0, 3²), x₂ | x₁ ~
+    N(b·(x₁² − 9), 1), the others N(0, 1): log density and gradient. E[x₂] = 0, sd(x₂)² = 1 + 2·(9b)²."""
+
+    def both(x):
+        x = np.atleast_2d(x)
+        with np.errstate(over="ignore", invalid="ignore"):  # a diverging trajectory: −inf, as the product's
+            r = x[:, 1] - b * (x[:, 0] ** 2 - 9.0)
+            lp = -0.5 * (x[:, 0] / 3.0) ** 2 - 0.5 * r**2 - 0.5 * np.sum(x[:, 2:] ** 2, axis=1)
+            g = np.zeros_like(x)
+            g[:, 0] = -x[:, 0] / 9.0 + r * 2.0 * b * x[:, 0]
+            g[:, 1] = -r
+            g[:, 2:] = -x[:, 2:]
+        bad = ~np.isfinite(lp) | ~np.all(np.isfinite(g), axis=1)
+        lp[bad], g[bad] = -np.inf, 0.0
+        return lp, g
+
+    return both
+
+
 def _narrow_start(dim, sd=0.3):
     """A split normal at the origin, ``sd`` wide on every axis: too narrow and off-centre for
     the targets below (their Pareto k at its draws is far above 0.7)."""
@@ -53,3 +84,74 @@ def test_moves_that_cannot_forget_the_start_are_not_converged():
 def test_a_posterior_zero_at_every_particle_stops_with_a_reason():
     res = tempered_smc(lambda x: np.full(len(x), -np.inf), _narrow_start(3), np.random.default_rng(0), 100)
     assert not res.converged and res.reason == "no particle has a finite posterior density"
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_hmc_moves_recover_a_posterior_the_approximation_misses(seed):
+    """With the posterior's gradient the moves are HMC (the particles' covariance as inverse
+    mass): the same correlated Gaussian as the random walk's test, recovered as well."""
+    dim = 6
+    rng = np.random.default_rng(100 + seed)
+    a = rng.normal(size=(dim, dim))
+    cov = a @ a.T / dim + np.eye(dim)
+    mean = rng.normal(scale=0.5, size=dim)
+    both = _target_and_grad(mean, cov)
+    res = tempered_smc(lambda x: both(x)[0], _narrow_start(dim), np.random.default_rng(seed), 1000,
+                       log_p_and_grad=both)
+    x = res.chain[:, 0, :]
+    assert res.converged and res.reason == "" and res.betas[-1] == 1.0
+    assert len(res.stage_step_size) == len(res.betas) and "HMC" in res.moves
+    sd = np.sqrt(np.diag(cov))
+    assert np.all(np.abs(x.mean(axis=0) - mean) < 0.2 * sd)
+    np.testing.assert_allclose(x.std(axis=0), sd, rtol=0.15)
+
+
+def test_hmc_moves_leave_a_curved_ridge_invariant():
+    """The HMC kernel (the particles' covariance as inverse mass, a jittered step tuned towards
+    0.65) leaves the posterior invariant: 200 moves of exact draws of a curved ridge keep its
+    spread, its skewed mean and the ridge's coordinates within their sampling error."""
+    from torsionfit.sample._smc import _Hamiltonian
+
+    both = _banana()
+    rng = np.random.default_rng(0)
+    n = 2000
+    x1 = 3.0 * rng.standard_normal(n)
+    x = np.stack([x1, 0.5 * (x1**2 - 9.0) + rng.standard_normal(n), *rng.standard_normal((2, n))], axis=1)
+    start = x.copy()
+    q = _narrow_start(4, sd=1.0)
+    kernel = _Hamiltonian(both, q, 4, leapfrog_steps=8)
+    lp, gp = both(x)
+    state = [x, lp, q.log_density(x), gp]
+    kernel.start_stage(x, 1.0)
+    rates = [kernel.move(m, state, rng) for m in range(1, 201)]
+    assert 0.3 < np.mean(rates[100:]) < 0.9
+    moved = state[0]
+    # most particles moved; a few far out on the ridge, where its curvature makes the tuned step
+    # too long, stay put (3 % here): the tails are the ridge's slowest part
+    assert np.mean(np.any(moved != start, axis=1)) > 0.9
+    # sampling error of 2000 draws: sd(x₂) ≈ 6.4 ± 0.3, mean(x₂) 0 ± 0.15
+    assert abs(moved[:, 0].std() - 3.0) < 0.2 and abs(moved[:, 1].std() - np.sqrt(1 + 2 * 4.5**2)) < 0.6
+    assert abs(moved[:, 1].mean()) < 0.45 and np.all(np.abs(moved[:, 2:].std(axis=0) - 1.0) < 0.1)
+
+
+def test_the_split_normals_gradient_is_its_log_densitys():
+    q = SplitNormal(mean=np.array([0.5, -1.0]), axes=np.array([[0.6, -0.8], [0.8, 0.6]]), sd=np.array([1.0, 2.0]),
+                    scales=np.array([[0.5, 1.5], [2.0, 0.7]]))
+    x = np.random.default_rng(0).normal(size=(20, 2)) * 2.0
+    eps = 1e-6
+    numeric = np.stack([(q.log_density(x + eps * e) - q.log_density(x - eps * e)) / (2 * eps) for e in np.eye(2)], axis=1)
+    np.testing.assert_allclose(q.grad_log_density(x), numeric, rtol=1e-5, atol=1e-7)
+
+
+@pytest.mark.xfail(strict=True, reason="known limit: on a strongly curved ridge the decorrelation rule passes while "
+                                       "the particles leave the ridge's far ends short (sd(x2) about 3.6 of 6.4)")
+def test_smc_reaches_the_far_ends_of_a_strongly_curved_ridge():
+    """The decorrelation rule says the particles forgot where resampling put them, not that
+    they reached every part of the posterior: from a narrow start on the curved ridge, HMC
+    moves 'converge' by it; the ridge's spread is what is asked of them here."""
+    both = _banana()
+    res = tempered_smc(lambda x: both(x)[0], _narrow_start(4, sd=1.0), np.random.default_rng(0), 1000,
+                       log_p_and_grad=both)
+    assert res.converged, res.reason  # the rule is met …
+    x = res.chain[:, 0, :]
+    assert abs(x[:, 1].std() / np.sqrt(1 + 2 * 4.5**2) - 1.0) < 0.2  # … the spread is not

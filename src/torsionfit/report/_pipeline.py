@@ -379,15 +379,17 @@ def auto_switch_rule(max_steps: int, tau_factor: float = 50.0):
 def run_smc(problem, map_result, options: FitOptions, seed: int):
     """Tempered SMC (:func:`~torsionfit.sample.tempered_smc`) from the split normal along the
     Laplace axes to ``problem``'s posterior (widened, when it is), ``options.smc_particles``
-    particles."""
+    particles moved by HMC (the posterior's gradient by JAX, in chunks of
+    :data:`GRADIENT_BATCH`)."""
     from ..sample import tempered_smc
-    from ..sample._emcee import _LogProb
+    from ..sample._emcee import _LogProb, _LogProbGrad
 
     approximation = laplace_approximation(problem, map_result, "split")
     log_density = _LogProb(problem, batch=LOG_DENSITY_BATCH)
     names = tuple(getattr(map_result, "names", None) or (f"u[{i}]" for i in range(len(map_result.u))))
     return tempered_smc(log_density, approximation, np.random.default_rng(seed), options.smc_particles,
-                        names=names, seed=seed, progress=log.info if options.progress else None)
+                        log_p_and_grad=_LogProbGrad(problem, batch=GRADIENT_BATCH), names=names, seed=seed,
+                        progress=log.info if options.progress else None)
 
 
 def sample_posterior(problem, map_result, options: FitOptions, seed: int):
@@ -438,6 +440,8 @@ def _sampler_diagnostics(sample_result, used: str, conv: dict, chain: np.ndarray
             "smc_moves": [int(m) for m in sample_result.stage_moves],
             "smc_acceptance": [float(a) for a in sample_result.stage_acceptance],
             "smc_correlation_max": float(max(sample_result.stage_correlation, default=0.0)),
+            "smc_step_size": [float(h) for h in sample_result.stage_step_size],
+            "smc_moves_kind": sample_result.moves,
             "approximation_pareto_k": float(sample_result.approximation_pareto_k),
             "reason": sample_result.reason or "",
         }
@@ -488,6 +492,9 @@ LAPLACE_SHAPES = ("gaussian", "split")
 #: draws per call of the batched log density that measures the split normal and checks the
 #: draws against the posterior: one batch shape, one compiled program for both
 LOG_DENSITY_BATCH = 256
+#: particles per call of the batched log density and gradient (SMC's HMC moves): on a measured
+#: loop (block means of 16 samples) 64 of them took 0.07 s
+GRADIENT_BATCH = 64
 
 
 @in_float64

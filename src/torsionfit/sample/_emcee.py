@@ -195,6 +195,36 @@ def bound_log_density(problem):
     return lambda chunk: program(key, leaves, chunk)
 
 
+def _value_and_grad_one(problem, u):
+    lp, g = jax.value_and_grad(problem.log_density)(u)
+    ok = jnp.isfinite(lp) & jnp.all(jnp.isfinite(g))
+    return jnp.where(ok, lp, -jnp.inf), jnp.where(ok, g, 0.0)
+
+
+#: log-density and gradient of a batch of u (n, dim) → ((n,), (n, dim)): −inf and a zero
+#: gradient where either is not finite; compiled once per problem shape and batch size
+batch_log_density_and_grad = _map_jit(eqx.filter_vmap(_value_and_grad_one, in_axes=(None, 0)))
+
+
+class _LogProbGrad:
+    """NumPy (n, dim) → (log density (n,), gradient (n, dim)) in chunks of ``batch`` rows (one
+    compiled shape; the last chunk padded): −inf and a zero gradient off the support, never NaN
+    (tempered SMC's HMC moves)."""
+
+    def __init__(self, problem, batch: int = 64):
+        self.problem, self.batch = problem, int(batch)
+
+    def __call__(self, coords):
+        coords = np.atleast_2d(np.asarray(coords, dtype=float))
+        ok = np.all(np.isfinite(coords), axis=1)
+        safe = np.where(ok[:, None], coords, 0.0) if not ok.all() else coords
+        lp, g = map_chunks(lambda c: batch_log_density_and_grad(self.problem, c), safe, self.batch)
+        lp, g = np.array(lp, dtype=float), np.array(g, dtype=float)
+        bad = ~ok | ~np.isfinite(lp)
+        lp[bad], g[bad] = -np.inf, 0.0
+        return lp, g
+
+
 class _LogProb:
     """NumPy wrapper for emcee (``vectorize=True``): (n, dim) → (n,), never NaN.
 
