@@ -16,8 +16,8 @@ alike) and the step size tuned towards an acceptance of 0.65 (Beskos et al. 2013
 (a posterior given as values alone) random-walk Metropolis steps with the particles' covariance
 scaled by a factor tuned towards an acceptance of 0.234, every other move an independence
 proposal from the particles' Gaussian (inflated by ``INDEPENDENT_INFLATION``): on measured loops
-these did not forget their start within 100 moves near β = 1 (largest correlation 0.28–0.59),
-where eight leapfrog steps a move did in 5–15 moves. The moves go on until every coordinate's
+these did not forget their start within 100 moves near β = 1 (largest correlation 0.28–0.59).
+The moves go on until every coordinate's
 correlation with the particles' positions at the start of the stage has fallen to
 ``decorrelation`` — the particles have forgotten where resampling put them — or
 ``max_moves`` is reached, which counts as not converged. At β = 1 the particles are equally
