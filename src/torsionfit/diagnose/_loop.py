@@ -322,7 +322,7 @@ def _backward(campaign: Campaign, options: DiagnoseOptions, seed: int, current: 
     """Each kept step refitted out of ``current`` (but one whose ``after`` is ``current``: its
     own step compared exactly that): a :class:`Removal` per step, the one that earns the least
     of those that no longer earn their keep marked dropped."""
-    checks = []
+    checks, redundant = [], []
     for i, step in enumerate(steps):
         if step.after is current:
             continue
@@ -336,8 +336,8 @@ def _backward(campaign: Campaign, options: DiagnoseOptions, seed: int, current: 
         if keeps:
             say(f"  {step.effect} still earns its keep: ΔELPD {c.delta:.1f} ± {c.se:.1f} ({c.criterion})")
         checks.append(Removal(step, current, trial, c, dropped=False))
-    redundant = [r for r in checks if not options.earns_keep(r.delta_elpd, r.delta_elpd_se, r.without.rmse_arcsec,
-                                                             r.within.rmse_arcsec)]
+        if not keeps:
+            redundant.append(checks[-1])
     if redundant:
         least = min(redundant, key=lambda r: r.delta_elpd)
         checks = [replace(r, dropped=True) if r is least else r for r in checks]
