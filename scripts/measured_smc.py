@@ -37,7 +37,12 @@ from torsionfit.report import fit_campaign, metrics_against_data  # noqa: E402
 METRICS = ("play", "stiffness_loading")
 
 
-def _fit_both(unit: str, particles: int, seed: int) -> dict:
+def _row_path(output: Path, unit: str) -> Path:
+    return output / "units" / f"{unit}.json"
+
+
+def _fit_both(unit: str, particles: int, seed: int, output: Path) -> dict:
+    """Fit one loop both ways and write its row at once (a run stopped part-way keeps its done loops)."""
     args = mv.parse_args(["--units", unit, "-o", "unused"])
     path = mv._data_path(unit)
     ramps = mv.test_numbers(path)
@@ -61,7 +66,20 @@ def _fit_both(unit: str, particles: int, seed: int) -> dict:
                    {k: d[k] for k in ("smc_betas", "smc_moves", "smc_acceptance", "smc_correlation_max",
                                       "approximation_pareto_k", "smc_moves_kind")}),
             }
+    out["particles"], out["seed"] = particles, seed
+    path = _row_path(output, unit)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=1, default=float))
     return out
+
+
+def _done_row(output: Path, unit: str, particles: int, seed: int) -> dict | None:
+    """The row a previous run wrote for this unit with the same settings, else None."""
+    path = _row_path(output, unit)
+    if not path.is_file():
+        return None
+    row = json.loads(path.read_text())
+    return row if (row.get("particles"), row.get("seed")) == (particles, seed) else None
 
 
 def _metric(entry: dict, name: str) -> str:
@@ -112,13 +130,22 @@ def main(argv=None) -> int:
     p.add_argument("--particles", type=int, default=1000)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=1)
+    p.add_argument("--force", action="store_true",
+                   help="refit loops whose row a previous run with the same settings wrote (default: reuse it)")
     args = p.parse_args(argv)
     if not mv.DATA.is_dir():
         print(f"{mv.DATA} is absent: nothing to fit")
         return 0
     args.output.mkdir(parents=True, exist_ok=True)
+    done = {u: None if args.force else _done_row(args.output, u, args.particles, args.seed) for u in args.units}
+    todo = [u for u in args.units if done[u] is None]
+    for u in args.units:
+        if done[u] is not None:
+            print(f"{u}: reusing {_row_path(args.output, u)} (--force refits it)")
     with executor(workers=args.jobs) as run_map:
-        rows = list(run_map(functools.partial(_fit_both, particles=args.particles, seed=args.seed), args.units))
+        fitted = dict(zip(todo, run_map(functools.partial(_fit_both, particles=args.particles, seed=args.seed,
+                                                            output=args.output), todo)))
+    rows = [done[u] or fitted[u] for u in args.units]
     (args.output / "smc.json").write_text(json.dumps({"source": mv.SOURCE, "particles": args.particles, "units": rows},
                                                      indent=1, default=float))
     text = markdown(rows, args.particles)

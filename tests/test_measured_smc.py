@@ -34,3 +34,14 @@ def test_the_page_sets_both_samplers_side_by_side_and_names_a_run_that_did_not_m
     assert "| compliance_loading_neg / none |" in line and "| 3 | 100, 100, 100 | 0.62 | False |" in line
     assert "split-pccf-preload2-pos5: the particles did not forget their start" in text
     assert "Computed with Python" in text and "REAL" in text
+
+
+def test_a_loops_row_is_reused_only_with_the_same_particles_and_seed(tmp_path):
+    """Each loop's row is written as it is done; a rerun reuses it only when it was made the same way."""
+    path = ms._row_path(tmp_path, "split-pccf-initial-pos1")
+    path.parent.mkdir(parents=True)
+    path.write_text('{"unit": "split-pccf-initial-pos1", "particles": 500, "seed": 0}')
+    assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 0)["unit"] == "split-pccf-initial-pos1"
+    assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 1000, 0) is None
+    assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 1) is None
+    assert ms._done_row(tmp_path, "split-pccf-initial-pos5", 500, 0) is None
