@@ -398,12 +398,12 @@ def test_smc_sampler_draws_the_posterior_and_reports_its_schedule(noisy_bench):
     posterior is near Gaussian, so the particles agree with the Laplace draws' spread, and
     fit.json carries the schedule and whether every stage's moves forgot their start."""
     sim = simulate(load_bench(noisy_bench), seed=4)
-    fit = fit_campaign(sim.campaign, FitOptions(sampler="smc", n_starts=2, smc_particles=400, progress=False), seed=0)
+    fit = fit_campaign(sim.campaign, FitOptions(sampler="smc", n_starts=2, smc_particles=200, progress=False), seed=0)
     d = fit.diagnostics
-    assert d["sampler"] == "smc" and d["smc_particles"] == 400 and d["smc_betas"][-1] == 1.0
+    assert d["sampler"] == "smc" and d["smc_particles"] == 200 and d["smc_betas"][-1] == 1.0
     assert d["converged"] == (d["reason"] == "") and d["converged"], d["reason"]
     assert len(d["smc_moves"]) == len(d["smc_betas"]) and d["smc_correlation_max"] <= 0.1
-    assert fit.draws_u.shape[0] == 400
+    assert fit.draws_u.shape[0] == 200
     # the Laplace approximation holds on the model's own bench: the same spread within a third
     cov_sd = np.sqrt(np.diag(fit.map_result.cov))
     ratio = fit.draws_u.std(axis=0)[: len(cov_sd)] / cov_sd
