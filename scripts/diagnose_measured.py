@@ -88,7 +88,8 @@ def diagnose_unit(unit: str, args) -> tuple[list[str], dict, str]:
     options = DiagnoseOptions(noise=noise_options(args), candidates_per_step=args.candidates_per_step,
                               max_candidates_first_step=args.max_candidates_first_step,
                               max_candidates_per_step=args.max_candidates_per_step,
-                              robust_signatures=not args.least_squares_signatures, backward=not args.no_backward)
+                              robust_signatures=not args.least_squares_signatures, backward=not args.no_backward,
+                              swap=not args.no_swap)
     result = diagnose(campaign, options, seed=args.seed, progress=say)
     doc = write_diagnosis(result, campaign, args.output / unit)
     seconds = time.perf_counter() - t0
@@ -131,6 +132,9 @@ def main(argv=None) -> int:
     parser.add_argument("--no-backward", action="store_true",
                         help="no backward checks: the greedy trail alone (default: when it stops, each kept effect but "
                              "the last is refitted out, one the others made redundant is dropped and the trail goes on)")
+    parser.add_argument("--no-swap", action="store_true",
+                        help="no swaps (default: a trail at its limit of effects with a signature left refits its "
+                             "weakest effect out and the candidate in its place, kept when it earns its keep)")
     parser.add_argument("--refit-each", action="store_true",
                         help="no trail: refit the base model plus each effect of the unit's validation model alone, "
                              "whatever its signature, and print the ΔELPD each earns (what the keep rule sees)")
@@ -155,7 +159,9 @@ def main(argv=None) -> int:
         + (f", Student-t with ν = {args.student_t:g}" if args.student_t else "")
         + (", least-squares signatures" if args.least_squares_signatures else ", robust signatures")
         + (", no backward checks (`--no-backward`)" if args.no_backward else ", backward checks: each kept effect but the "
-           "last refitted out of the final model, a redundant one dropped") + "), "
+           "last refitted out of the final model, a redundant one dropped")
+        + ("" if args.no_backward else ", no swaps (`--no-swap`)" if args.no_swap else ", swaps at the limit of effects")
+        + "), "
         f"`scripts/diagnose_measured.py`, seed {args.seed}.",
         "",
         "| unit | step | log10 p of the signature | RMSE (arcsec) | max \\|residual\\| (arcsec) | ΔELPD ± SE | wall (s) |",

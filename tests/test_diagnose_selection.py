@@ -473,9 +473,8 @@ def test_the_backward_check_drops_an_effect_a_later_one_made_redundant(monkeypat
     from dataclasses import replace
     from types import SimpleNamespace
 
-    from torsionfit.diagnose import Effect, _loop
+    from torsionfit.diagnose import _loop
     from torsionfit.diagnose._selection import Comparison
-    from torsionfit.diagnose._signature import Evidence
 
     def elpd(effects) -> float:
         e = set(effects)
@@ -483,33 +482,7 @@ def test_the_backward_check_drops_an_effect_a_later_one_made_redundant(monkeypat
         return (60.0 if "gap" in e else 40.0 if "drift" in e else 0.0) + (2.0 if {"gap", "drift"} <= e else 0.0) \
             + (30.0 if "creep" in e else 0.0) + (25.0 if "speed" in e else 0.0)
 
-    strength = {"drift": -30.0, "gap": -20.0, "creep": -10.0, "speed": -9.0}
-
-    class Stand(Effect):
-        def __init__(self, name):
-            self.name = name
-
-        def signature(self, ctx, alpha):
-            return Evidence(self.name, 0.0, 1, strength[self.name], 0.1, "")
-
-        def extend(self, effects, evidence, ctx):
-            return {**effects, self.name: True}
-
-    catalog = tuple(Stand(n) for n in strength)
-    calls = []
-
-    def fit_with(campaign, effects, options, seed, warm=None, start_values=None):
-        calls.append(tuple(sorted(effects)))
-        return SimpleNamespace(effects=dict(effects), context=SimpleNamespace(runs=()), score=tuple(effects),
-                               rmse_arcsec=1.0, max_abs_arcsec=1.0, rmse_per_run={})
-
-    monkeypatch.setattr(_loop, "fit_with", fit_with)
-    monkeypatch.setattr(_loop, "compare", lambda before, after: Comparison(elpd(after) - elpd(before), 1.0, "stand-in", ""))
-    monkeypatch.setattr(_loop, "_signatures", lambda ctx, options, added: [
-        (e, e.signature(ctx, options.alpha)) for e in options.catalog if e.name not in added])
-    monkeypatch.setattr(_loop, "noise_rmse_arcsec", lambda ctx: 1.0)
-    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added: [])
-    monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
+    catalog, calls = _stand_in_trail(monkeypatch, {"drift": -30.0, "gap": -20.0, "creep": -10.0, "speed": -9.0}, elpd)
     # one candidate a step, room for two effects: drift (the strongest signature) then the gap
     options = _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=1, max_candidates_first_step=1,
                                     max_candidates_per_step=1, max_effects=2)
@@ -532,3 +505,87 @@ def test_the_backward_check_drops_an_effect_a_later_one_made_redundant(monkeypat
     d = _loop.diagnose(SimpleNamespace(), options, seed=0)
     assert [s.effect for s in d.steps] == ["drift", "gap"]
     assert [(r.effect, r.dropped, r.delta_elpd) for r in d.removals] == [("drift", False, 20.0)]
+
+
+def test_a_trail_at_its_limit_swaps_its_weakest_effect_for_a_stronger_one(monkeypatch):
+    """At ``max_effects`` with a significant signature left, the kept effect that earns the
+    least is refitted out and the candidate refitted in its place; the swap is kept when the new
+    model earns its keep over the trail's, and the effect swapped out is not taken again.
+    Stand-in fits whose ELPD adds up per effect: the rule alone."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from torsionfit.diagnose import _loop
+    from torsionfit.diagnose._report import summary_text
+
+    worth = {"drift": 15.0, "creep": 30.0, "gap": 60.0, "speed": 5.0}
+    strength = {"drift": -30.0, "creep": -20.0, "gap": -10.0, "speed": -9.0}
+
+    def elpd(effects):
+        return sum(worth[n] for n in effects)
+
+    catalog, calls = _stand_in_trail(monkeypatch, strength, elpd)
+    options = _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=1,
+                                    max_candidates_first_step=1, max_candidates_per_step=1, max_effects=2)
+    d = _loop.diagnose(SimpleNamespace(), options, seed=0)
+    # greedy: drift then creep fill the room; drift still earns 15 with creep in, but the gap in
+    # its place earns 45 over the pair: swapped; then nothing significant is left to swap in
+    assert [s.effect for s in d.steps] == ["creep", "gap"], [s.effect for s in d.steps]
+    assert d.final.effects == {"creep": True, "gap": True}
+    assert [(r.effect, r.dropped, r.replaced_by) for r in d.removals] == [
+        ("drift", False, ""), ("drift", True, "gap"), ("creep", False, "")]
+    swap = d.removals[1]
+    assert swap.swap_comparison.delta == 45.0 and swap.delta_elpd == 15.0 and swap.without.effects == {"creep": True}
+    assert d.steps[-1].delta_elpd == 60.0 and d.steps[-1].before is swap.without
+    assert ("drift", "gap") not in calls  # the effect swapped out is not taken again
+    doc = {"rmse_base": 1.0, "steps": [], "rejected": [], "rmse_final": 1.0, "noise_estimate": 1.0, "added": [],
+           "unexplained": False, "removals": [{"effect": "drift", "dropped": True, "replaced_by": "gap",
+                                               "swap_delta_elpd": 45.0, "swap_delta_elpd_se": 1.0, "delta_elpd": 15.0,
+                                               "delta_elpd_se": 1.0, "criterion": "stand-in", "rmse_without": 2.0,
+                                               "rmse_with": 1.0}]}
+    assert "- drift" in summary_text(doc) and "swapped out for gap (ΔELPD 45.0 ± 1.0 over the model with it)" in summary_text(doc)
+    # a swap that does not earn its keep over the trail's model is tried and left
+    worth["gap"] = 20.0
+    d = _loop.diagnose(SimpleNamespace(), options, seed=0)
+    assert [s.effect for s in d.steps] == ["drift", "creep"]
+    assert [s.effect for s in d.rejected][-1] == "gap" and d.rejected[-1].delta_elpd == 5.0
+    # off: the trail stops at its limit
+    worth["gap"] = 60.0
+    d = _loop.diagnose(SimpleNamespace(), replace(options, swap=False), seed=0)
+    assert [s.effect for s in d.steps] == ["drift", "creep"] and all(not r.replaced_by for r in d.removals)
+
+
+def _stand_in_trail(monkeypatch, strength: dict, elpd):
+    """Stand-in fits for the trail's rules: effects named by ``strength`` (their signatures'
+    log10 p) whose fits' ELPD is ``elpd(effects)``. Returns (catalog, calls: the effect sets fitted)."""
+    from types import SimpleNamespace
+
+    from torsionfit.diagnose import Effect, _loop
+    from torsionfit.diagnose._selection import Comparison
+    from torsionfit.diagnose._signature import Evidence
+
+    class Stand(Effect):
+        def __init__(self, name):
+            self.name = name
+
+        def signature(self, ctx, alpha):
+            return Evidence(self.name, 0.0, 1, strength[self.name], 0.1, "")
+
+        def extend(self, effects, evidence, ctx):
+            return {**effects, self.name: True}
+
+    calls = []
+
+    def fit_with(campaign, effects, options, seed, warm=None, start_values=None):
+        calls.append(tuple(sorted(effects)))
+        return SimpleNamespace(effects=dict(effects), context=SimpleNamespace(runs=()), score=tuple(effects),
+                               rmse_arcsec=1.0, max_abs_arcsec=1.0, rmse_per_run={}, map_result=None)
+
+    monkeypatch.setattr(_loop, "fit_with", fit_with)
+    monkeypatch.setattr(_loop, "compare", lambda before, after: Comparison(elpd(after) - elpd(before), 1.0, "stand-in", ""))
+    monkeypatch.setattr(_loop, "_signatures", lambda ctx, options, added: [
+        (e, e.signature(ctx, options.alpha)) for e in options.catalog if e.name not in added])
+    monkeypatch.setattr(_loop, "noise_rmse_arcsec", lambda ctx: 1.0)
+    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added: [])
+    monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
+    return tuple(Stand(n) for n in strength), calls

@@ -126,7 +126,7 @@ def test_diagnose_finds_the_load_dependent_and_distributed_friction(tmp_path, se
     trail, ``scripts/independent_bench_report.py``, adds the hardening spring third)."""
     reducer = bench.TorqueSideReducer()
     options = DiagnoseOptions(noise=NoiseOptions(ar1=False), candidates_per_step=2,
-                              max_candidates_first_step=2, max_effects=2)
+                              max_candidates_first_step=2, max_effects=2, swap=False)
     campaign = _campaign(tmp_path, reducer, "loaded", seed=seed, rate_Hz=rate_Hz)
     result = diagnose(campaign, options, seed=seed)
     added = {s.effect for s in result.steps}

@@ -168,7 +168,8 @@ def _cmd_diagnose(args) -> int:
     check_fittable(campaign)  # before the model is built from the rated torque
     options = DiagnoseOptions(initial_effects=_parse_effects(args.with_),
                               noise=NoiseOptions(ar1=AR1[args.ar1], student_t_dof=args.student_t),
-                              robust_signatures=not args.least_squares_signatures, backward=not args.no_backward)
+                              robust_signatures=not args.least_squares_signatures, backward=not args.no_backward,
+                              swap=not args.no_swap)
     say = _say(args)  # progress once the input is known good: bad input is one line
     say(f"read {args.campaign}: " + _campaign_line(campaign))
     result = diagnose(campaign, options, seed=args.seed, progress=say)
@@ -390,6 +391,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-backward", action="store_true",
                    help="the greedy trail alone (default: when it stops, each kept effect but the last is refitted out of "
                         "the final model; one the others made redundant is dropped and the trail goes on without it)")
+    p.add_argument("--no-swap", action="store_true",
+                   help="no swaps (default: a trail at its limit of effects with a signature left refits the weakest "
+                        "kept effect out and the candidate in its place, and keeps the swap when it earns its keep)")
     p.set_defaults(func=_cmd_diagnose)
 
     p = sub.add_parser(

@@ -59,6 +59,12 @@ class DiagnoseOptions:
     #: baseline initial-pos6: the play ramps' zero and a drift, kept third and fourth, left the
     #: held gap no room within ``max_effects``)
     backward: bool = True
+    #: when the trail has used its ``max_effects`` and a significant signature is left, the kept
+    #: effect that earns the least is refitted out and each of the next ``candidates_per_step``
+    #: candidates in its place; the best such model replaces the trail's when it earns its keep
+    #: over it (the same rule), and the effect swapped out is not taken again. A greedy trail at
+    #: its limit cannot otherwise trade a weak early effect for a strong later one
+    swap: bool = True
     loo_draws: int = 200
     # a leftover is a finding (``unexplained``) only when it is large against the noise floor:
     finding_min_explained: float = 0.05  # it explains more than this share of the residual variance …
@@ -125,6 +131,10 @@ class Removal(_Compared):
     without: Fitted
     comparison: Comparison
     dropped: bool
+    #: a swap (``DiagnoseOptions.swap``): the effect refitted in its place, and the model with it
+    #: in its place against ``within``
+    replaced_by: str = ""
+    swap_comparison: Comparison | None = None
 
     @property
     def effect(self) -> str:
@@ -236,6 +246,19 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
         checks = _backward(campaign, options, seed, current, steps, say)
         removals += checks
         drop = next((r for r in checks if r.dropped), None)
+        if drop is None and options.swap and len(steps) >= options.max_effects:
+            swap = _swap(campaign, options, seed, current, steps, checks, added | dropped, rejected, say)
+            if swap is None:
+                break
+            removal, step = swap
+            removals.append(removal)
+            steps = [s for s in steps if s is not removal.step] + [step]
+            dropped.add(removal.effect)
+            added.discard(removal.effect)
+            added.add(step.effect)
+            current = step.after
+            effects = dict(current.effects)
+            continue
         if drop is None:
             break
         say(f"  {drop.effect} dropped: ΔELPD {drop.delta_elpd:.1f} ± {drop.delta_elpd_se:.1f} "
@@ -342,6 +365,46 @@ def _backward(campaign: Campaign, options: DiagnoseOptions, seed: int, current: 
         least = min(redundant, key=lambda r: r.delta_elpd)
         checks = [replace(r, dropped=True) if r is least else r for r in checks]
     return checks
+
+
+def _swap(campaign: Campaign, options: DiagnoseOptions, seed: int, current: Fitted, steps: list, checks: list,
+          taken: set, rejected: list, say) -> tuple[Removal, Step] | None:
+    """A trail at its ``max_effects``: the kept effect that earns the least over the model
+    without it (its backward check, or for the last step its own step) refitted out and each of
+    the next ``candidates_per_step`` significant signatures of ``current`` in its place.
+    ``(removal, step)`` of the best swap that earns its keep over ``current``, else None (the
+    swaps tried go to ``rejected``, compared with ``current``)."""
+    last = steps[-1] if steps and steps[-1].after is current else None
+    weakest = [(r.delta_elpd, r.without, r.step) for r in checks if r.within is current]
+    if last is not None:
+        weakest.append((last.delta_elpd, last.before, last))
+    if not weakest:
+        return None
+    gain, without, weak = min(weakest, key=lambda w: w[0])
+    found = _signatures(current.context, options, taken)
+    candidates = sorted((fe for fe in found if fe[1].significant(options.alpha)), key=lambda fe: _gain_rank(fe[1]))
+    best = None
+    for effect, ev in candidates[: options.candidates_per_step]:
+        say(f"trying {effect.name} in place of {weak.effect} (the weakest kept effect, ΔELPD {gain:.1f}; swap)")
+        trial = fit_with(campaign, effect.extend(without.effects, ev, current.context), options, seed, warm=without,
+                         start_values=effect.start_values(ev))
+        c = compare(current.score, trial.score)
+        if options.earns_keep(c.delta, c.se, current.rmse_arcsec, trial.rmse_arcsec) and (
+                best is None or c.delta > best[2].delta):
+            if best is not None:
+                rejected.append(Step(best[0].name, best[1], current, best[3], best[2], kept=False))
+            best = (effect, ev, c, trial)
+            continue
+        say(f"  {effect.name} in place of {weak.effect} not kept: ΔELPD {c.delta:.1f} ± {c.se:.1f} ({c.criterion}) "
+            f"over the trail's model, RMSE {current.rmse_arcsec:.3g}″ → {trial.rmse_arcsec:.3g}″")
+        rejected.append(Step(effect.name, ev, current, trial, c, kept=False))
+    if best is None:
+        return None
+    effect, ev, c, trial = best
+    say(f"  {effect.name} replaces {weak.effect}: ΔELPD {c.delta:.1f} ± {c.se:.1f} ({c.criterion}) over the trail's model")
+    removal = Removal(weak, current, without, compare(without.score, current.score), dropped=True,
+                      replaced_by=effect.name, swap_comparison=c)
+    return removal, Step(effect.name, ev, without, trial, compare(without.score, trial.score), kept=True)
 
 
 def _gain_rank(ev: Evidence) -> float:

@@ -46,7 +46,10 @@ def diagnose_json(d: Diagnosis, campaign) -> dict:
         # each kept effect refitted out of a later model (DiagnoseOptions.backward): ΔELPD of keeping it
         "removals": [
             {"effect": r.effect, "dropped": r.dropped, "effects_with": sorted(r.within.effects),
-             "rmse_with": r.within.rmse_arcsec, "rmse_without": r.without.rmse_arcsec, **r.comparison.as_dict()}
+             "rmse_with": r.within.rmse_arcsec, "rmse_without": r.without.rmse_arcsec, **r.comparison.as_dict(),
+             # a swap: the effect refitted in its place, and that model's ΔELPD over the one with it
+             **({"replaced_by": r.replaced_by, "swap_delta_elpd": r.swap_comparison.delta,
+                 "swap_delta_elpd_se": r.swap_comparison.se} if r.replaced_by else {})}
             for r in d.removals
         ],
         "unexplained": d.unexplained,
@@ -73,7 +76,10 @@ def summary_text(doc: dict) -> str:
         lines.append(f"  {s['effect']:24s} tried, not kept: ΔELPD {s['delta_elpd']:.1f} ± {s['delta_elpd_se']:.1f} ({s['criterion']}), "
                      f"RMSE {s['rmse_before']:.3g}″ → {s['rmse_after']:.3g}″")
     for r in doc.get("removals", []):
-        verdict = "dropped, no longer earns its keep" if r["dropped"] else "checked, still earns its keep"
+        verdict = ("dropped, no longer earns its keep" if r["dropped"] else "checked, still earns its keep")
+        if r.get("replaced_by"):
+            verdict = (f"swapped out for {r['replaced_by']} (ΔELPD {r['swap_delta_elpd']:.1f} ± "
+                       f"{r['swap_delta_elpd_se']:.1f} over the model with it), earned")
         lines.append(f"- {r['effect']:24s} {verdict}: ΔELPD {r['delta_elpd']:.1f} ± {r['delta_elpd_se']:.1f} "
                      f"({r['criterion']}) over the model without it, RMSE {r['rmse_without']:.3g}″ without it, "
                      f"{r['rmse_with']:.3g}″ with it")
