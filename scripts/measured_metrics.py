@@ -23,12 +23,15 @@ from torsionfit import InputError
 from torsionfit.io import load_campaign
 from torsionfit.fit._prior import cycle_friction_Nm
 from torsionfit.metrics import campaign_metrics
-from torsionfit.metrics._hysteresis import CLASS_METRICS, grouped_cycles
+from torsionfit.metrics._hysteresis import CLASS_METRICS, LOADING_FIT_TOP, grouped_cycles, loading_fit, play_of
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data" / "cycloidal-jv"
 #: the goal: data-only play and stiffness_loading within this relative difference of the authors'
 TOLERANCE = 0.10
+#: the fractions of the peak at which the loading-slope fit is also ended, for the page's check
+#: of where the authors end theirs (their text says "beyond the play", no end)
+FIT_ENDS = (0.8, 0.9, 1.0)
 CREDIT = (
     "REAL measured data from the public repository JelmerV/Anti-Backlash-Cycloidal-Actuator, "
     "licensed CC BY-SA 4.0; the numbers derived here carry the same licence."
@@ -86,9 +89,19 @@ def file_metrics(folder: str, stem: str, workdir: Path) -> dict:
         return {"name": stem, "kind": "hysteresis", "metrics": {}, "notes": {m: str(err) for m in CLASS_METRICS},
                 "friction_Nm": None}
     (run,) = campaign_metrics(campaign)["runs"]
+    (classes,) = grouped_cycles(campaign.hysteresis_runs)
+    # the + and − compliances (deg/N·m) with the slope's fit ending at other fractions of the
+    # peak: how much the authors' unstated end of the fit moves their number
+    play = play_of(classes.smallest)
+    run["compliance_by_fit_end"] = {}
+    for top in FIT_ENDS:
+        try:
+            fit = loading_fit(classes.largest, play, name=stem, top=top)
+        except InputError:
+            continue
+        run["compliance_by_fit_end"][top] = (float(np.degrees(fit.compliance_pos)), float(np.degrees(fit.compliance_neg)))
     # friction read off the loops (half the width in torque at the mid angle) of the smallest
     # and the largest cycles: equal where friction does not depend on the cycle's amplitude
-    (classes,) = grouped_cycles(campaign.hysteresis_runs)
     run["friction_Nm"] = {name: (float(np.max(np.abs(c.torque_Nm))), cycle_friction_Nm(c))
                           for name, c in (("smallest", classes.smallest), ("largest", classes.largest))}
     return run
@@ -180,8 +193,8 @@ def markdown(rows: list[dict]) -> str:
         "`play` is the loop width at zero torque of the smallest cycles (the ±4 N·m play ramps); "
         "`stiffness_loading` is 1 / mean of the + and − loading-branch compliances of the largest "
         "cycles (the ±25 or ±40 N·m stiffness ramps), each a least-squares slope of angle on torque from "
-        "where the branch is past half the play (from the loop midpoint at zero torque) to 90 % of the "
-        "peak. The positions (pos1, pos5 and pos6) are averaged as the authors do: the play, and the + and − "
+        f"where the branch is past half the play (from the loop midpoint at zero torque) to {100 * LOADING_FIT_TOP:g} % "
+        "of the peak. The positions (pos1, pos5 and pos6) are averaged as the authors do: the play, and the + and − "
         "compliances separately. Authors' numbers: the table of the data README. "
         f"Goal: within {100 * TOLERANCE:.0f} %.",
         "",
@@ -238,6 +251,7 @@ def markdown(rows: list[dict]) -> str:
         "once both cycles slide through; a broad density of break-away levels does (the small cycles slide "
         "on the weak elements only), and so would a level that remembers the last peak load.",
     ]
+    lines += ["", fit_end_text(rows)]
     missed = [r["configuration"] for r in rows if not (r["play_ok"] and r["stiffness_ok"])]
     lines += [
         "",
@@ -245,6 +259,35 @@ def markdown(rows: list[dict]) -> str:
          else "Outside the goal: " + ", ".join(missed) + "."),
     ]
     return "\n".join(lines) + "\n"
+
+
+def fit_end_deltas(rows: list[dict], top: float) -> np.ndarray | None:
+    """|relative difference| of our + and − compliances (positions averaged) from the authors',
+    the slope's fit ended at ``top`` × the peak: two per configuration (None if a file has no fit)."""
+    out = []
+    for r in rows:
+        runs = r["ours"]["runs"].values()
+        sides = [run.get("compliance_by_fit_end", {}).get(top) for run in runs]
+        if any(s is None for s in sides):
+            return None
+        for k, name in ((0, "compliance_pos"), (1, "compliance_neg")):
+            out.append(abs(np.mean([s[k] for s in sides]) / r["authors"][name] - 1.0))
+    return np.asarray(out)
+
+
+def fit_end_text(rows: list[dict]) -> str:
+    """Where the loading-slope fit ends, against the authors' + and − compliances."""
+    parts = []
+    for top in FIT_ENDS:
+        d = fit_end_deltas(rows, top)
+        if d is not None:
+            parts.append(f"at {100 * top:g} % of the peak: median {100 * np.median(d):.1f} %, worst {100 * d.max():.1f} %")
+    return (
+        "Where the slope's fit ends: the authors' text says \"beyond the play\" and names no end. The |difference| "
+        f"of our + and − compliances (positions averaged, {2 * len(rows)} sides) from theirs, the fit ended "
+        + "; ".join(parts) + f". The metrics end it at {100 * LOADING_FIT_TOP:g} % of the peak (the peak of the "
+        "resampled branch: a torque plateau at a saturating bench's peak is one grid point)."
+    )
 
 
 def main(argv=None) -> int:

@@ -306,7 +306,7 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
                  f"cycles for the loading slope")
         specs += [
             MetricSpec("play", "arcmin", f"loop width at zero torque of the smallest cycles: {where}"),
-            MetricSpec("stiffness_loading", "Nm/arcmin", "1 / mean of the + and − loading-branch compliances of the largest cycles, beyond half the play from the loop centre up to 90 % of the peak (the data authors' definition), "
+            MetricSpec("stiffness_loading", "Nm/arcmin", "1 / mean of the + and − loading-branch compliances of the largest cycles, beyond half the play from the loop centre up to the peak (the data authors' definition), "
                        + where),
             MetricSpec("compliance_loading_pos", "deg/Nm", "loading compliance of the + side (increasing torque, τ > 0), as stiffness_loading"),
             MetricSpec("compliance_loading_neg", "deg/Nm", "loading compliance of the − side (decreasing torque, τ < 0), as stiffness_loading"),
