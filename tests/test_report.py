@@ -336,6 +336,39 @@ def test_model_play_and_loading_stiffness_match_the_data_only_reading(tmp_path):
     assert "play" not in [s.name for s in te_only.specs]
 
 
+def test_the_model_read_off_the_record_starts_from_the_runs_fitted_state(tmp_path):
+    """SYNTHETIC bench whose slip elements break away above the play ramps' torque: the state
+    they start in holds through every play ramp. The model's ``play`` read off the data's own
+    record is the play of the model's prediction of that record from the run's fitted state at
+    its first sample (``friction_start``), not from rest — which draws another play ramp loop."""
+    from torsionfit.fit._problem import model_inputs
+    from torsionfit.metrics import cycle_classes, play_of
+    from torsionfit.report._pipeline import campaign_model
+
+    effects = {"load_dependent_friction": True, "distributed_friction": True}
+    text = BENCH.read_text().replace("[truth]", "[effects]\nload_dependent_friction = true\ndistributed_friction = true\n[truth]\n"
+                                     "friction_load_coefficient = 0.15\nbreakaway_spread = 0.6")
+    text = text.replace("dahl_torque_Nm = 4.0\n", "").replace("friction_torque_Nm = 6.0", "friction_torque_Nm = 30.0")
+    text = text.replace("loading_rate_Nm_per_s = 5.0", "loading_rate_Nm_per_s = 5.0\nplay_cycles = 3\nplay_torque_Nm = 40.0")
+    path = tmp_path / "bench.toml"
+    path.write_text(text)
+    with torsionfit.float64():
+        sim = simulate(load_bench(path), seed=4)
+        model = campaign_model(sim.campaign, FitOptions(effects=effects))
+        derived = derived_metrics_for(sim.campaign, model)
+        at = [s.name for s in derived.specs].index("play")
+        run = sim.campaign.runs[0]
+        plays = {}
+        for start in (0.0, 0.9, -0.9):
+            values = {**sim.truth, "friction_start": np.array([start])}
+            theta = np.asarray(model.predict(values, model_inputs(sim.campaign))[0])
+            own = play_of(cycle_classes(np.asarray(run.time_s), np.asarray(run.torque_Nm), theta).smallest)
+            plays[start] = np.degrees(own) * 60.0  # arcmin
+            assert float(np.asarray(derived.evaluate(values))[at]) == pytest.approx(plays[start], rel=1e-6)
+    # the start state moves the play ramps' loop (else the check above could not fail)
+    assert abs(plays[0.9] - plays[0.0]) > 0.1 * plays[0.0] and abs(plays[-0.9] - plays[0.0]) > 0.1 * plays[0.0]
+
+
 def test_a_fit_with_parts_that_vanish_at_zero_starts_from_the_model_without_them():
     from torsionfit.report._pipeline import _without_nested
 

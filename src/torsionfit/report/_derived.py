@@ -8,7 +8,9 @@ hysteresis cycles), started at rest (friction state 0, no offset, no drift).
 
 ``play`` and ``stiffness_loading`` are read, with the data-only definitions
 (``metrics.play_from_arrays``, ``metrics.loading_compliance_from_arrays``), off the model's
-noise-free prediction of the data's own record (``report/_record.py``), started at rest.
+noise-free prediction of the data's own record (``report/_record.py``), started from that
+run's fitted state at its first sample, its torque-sensor offset applied (the record did not
+start at rest; no angle offset or drift: the definitions do not read them).
 """
 
 import dataclasses
@@ -28,7 +30,7 @@ from .._errors import InputError
 from ..metrics._hysteresis import class_loading_rate
 from ..metrics._te import TE_WINDOW_DEG, in_te_window, te_reading
 from ..units import ANGLE_UNITS, SPEED_UNITS, STIFFNESS_UNITS
-from ._record import RecordReader, record_classes, record_reader
+from ._record import RecordReader, record_classes, record_params, record_reader
 
 ARCMIN = ANGLE_UNITS["arcmin"]
 NM_PER_ARCMIN = STIFFNESS_UNITS["Nm/arcmin"]
@@ -174,7 +176,9 @@ class DerivedMetrics(eqx.Module):
             out.append((values["gap"] + first_segment_twist(values)) / ARCMIN)
         out += [q / ARCMIN for q in parts]
         if self.record is not None:
-            play, c_pos, c_neg = self.record.read(self.hyst_model, params)
+            # the data's own record: from its run's fitted state at the first sample, not from rest
+            play, c_pos, c_neg = self.record.read(
+                self.hyst_model, [record_params(self.hyst_model, params, values, k) for k in self.record.run_index])
             deg = ANGLE_UNITS["deg"]
             out += [play / ARCMIN, 2.0 / (c_pos + c_neg) / NM_PER_ARCMIN, c_pos / deg, c_neg / deg]
         if self.te_model is not None:
@@ -295,13 +299,14 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
     record = None
     if classes is not None:
         try:
-            record = record_reader(classes)
+            record = record_reader(classes, campaign.hysteresis_runs)
         except InputError:  # a branch too short to bin: no class metrics from the model (the data's notes say why)
             classes = None
     if classes is not None:
         runs = (f"run {classes.small_run.name!r}" if classes.large_run is classes.small_run
                 else f"runs {classes.small_run.name!r} and {classes.large_run.name!r}")
-        where = (f"the model's noise-free prediction of the data's own record ({runs}, started at rest), read as the data "
+        where = (f"the model's noise-free prediction of the data's own record ({runs}, from the fitted state at its first "
+                 f"sample), read as the data "
                  f"are: the ±{classes.small.amplitude_Nm:.3g} N·m cycles for the play, the ±{classes.large.amplitude_Nm:.3g} N·m "
                  f"cycles for the loading slope")
         specs += [

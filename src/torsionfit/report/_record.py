@@ -121,14 +121,18 @@ class RecordReader(eqx.Module):
     pos_part: jnp.ndarray  # mask of the grid: the + side's fit range
     neg_part: jnp.ndarray  # the − side's, on the mirrored grid
     large_record: int = eqx.field(static=True)  # index into ``inputs`` of the large cycles' run
+    #: per input, the index of its run among the campaign's hysteresis runs: whose fitted state at
+    #: its first sample the prediction starts from
+    run_index: tuple = eqx.field(static=True, default=(0,))
 
     @property
     def n_samples(self) -> int:
         return sum(int(inp.torque_Nm.shape[0]) for inp in self.inputs)
 
-    def read(self, model: m.CampaignModel, params: dict):
-        """(play, compliance_pos, compliance_neg) of ``model``'s prediction with ``params``."""
-        theta = [model.predict(params, [inp])[0] for inp in self.inputs]
+    def read(self, model: m.CampaignModel, params: list):
+        """(play, compliance_pos, compliance_neg) of ``model``'s (a one-run model's) prediction,
+        ``params[k]`` the parameters of input ``k``'s run (:func:`record_params`)."""
+        theta = [model.predict(p, [inp])[0] for p, inp in zip(params, self.inputs)]
         return self.read_angles(theta[0], theta[self.large_record])
 
     def read_angles(self, small_theta, large_theta):
@@ -145,8 +149,27 @@ class RecordReader(eqx.Module):
         return play, c_pos, c_neg
 
 
-def record_reader(classes: RecordClasses) -> RecordReader:
-    """The reader of the records in ``classes`` (:func:`record_classes`)."""
+def record_params(model: m.CampaignModel, at_rest: dict, values: dict, run_index: int) -> dict:
+    """Parameters of a one-run ``model`` predicting the campaign's hysteresis run ``run_index``:
+    ``at_rest`` (the run started at rest, no offsets) with that run's fitted state at its first
+    sample and the torque-sensor offset from the campaign's ``values``. The record did not start
+    at rest: on a loop whose slip elements break away above the play ramps' torque, the state
+    they were left in holds through every play ramp (measured split preload3-pos6: the model's
+    play at the MAP 8.5′ from its fitted state, 15.2′ from rest; the data's 6.2′)."""
+    out = dict(at_rest)
+    names = {p.name for p in model.parameters()}
+    for name in m.RUN_START_STATES:
+        if name in names and name in values:
+            out[name] = jnp.atleast_1d(values[name])[run_index:run_index + 1]
+    if "torque_offset" in names and "torque_offset" in values:
+        out["torque_offset"] = values["torque_offset"]
+    return out
+
+
+def record_reader(classes: RecordClasses, hysteresis_runs: tuple = ()) -> RecordReader:
+    """The reader of the records in ``classes`` (:func:`record_classes`); ``hysteresis_runs``:
+    the campaign's hysteresis runs, in order (where the records' runs are, for their fitted
+    start states; empty: the first)."""
     # the model is driven as the fit drives it: by the denoised measured torque (a play operator
     # on the raw torque slides by its noise and draws a narrower loop)
     def inp(run):
@@ -170,4 +193,10 @@ def record_reader(classes: RecordClasses) -> RecordReader:
         pos_part=jnp.asarray(pos_part),
         neg_part=jnp.asarray(neg_part),
         large_record=0 if same else 1,
+        run_index=tuple(_index_of(run, hysteresis_runs) for run in
+                        ((classes.small_run,) if same else (classes.small_run, classes.large_run))),
     )
+
+
+def _index_of(run, runs: tuple) -> int:
+    return next((i for i, r in enumerate(runs) if r is run), 0)
