@@ -41,7 +41,7 @@ def _row_path(output: Path, unit: str) -> Path:
     return output / "units" / f"{unit}.json"
 
 
-def _fit_both(unit: str, particles: int, seed: int, output: Path) -> dict:
+def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | None = None) -> dict:
     """Fit one loop both ways and write its row at once (a run stopped part-way keeps its done loops)."""
     args = mv.parse_args(["--units", unit, "-o", "unused"])
     path = mv._data_path(unit)
@@ -57,6 +57,9 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path) -> dict:
             seconds = time.perf_counter() - t0
             metrics, off = metrics_against_data(fit)
             d = fit.diagnostics
+            if draws is not None:  # the particles / draws (unconstrained), to read other metrics off later
+                draws.mkdir(parents=True, exist_ok=True)
+                np.save(draws / f"{unit}-{sampler}.npy", np.asarray(fit.draws_u, np.float32))
             out[sampler] = {
                 "seconds": seconds, "converged": bool(d["converged"]), "reason": d.get("reason", ""),
                 "off_data": off,
@@ -130,6 +133,8 @@ def main(argv=None) -> int:
     p.add_argument("--particles", type=int, default=1000)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--jobs", type=int, default=1)
+    p.add_argument("--save-draws", type=Path, default=None, metavar="FOLDER",
+                   help="also save each fit's draws (unconstrained parameters, .npy) in FOLDER")
     p.add_argument("--force", action="store_true",
                    help="refit loops whose row a previous run with the same settings wrote (default: reuse it)")
     args = p.parse_args(argv)
@@ -144,7 +149,7 @@ def main(argv=None) -> int:
             print(f"{u}: reusing {_row_path(args.output, u)} (--force refits it)")
     with executor(workers=args.jobs) as run_map:
         fitted = dict(zip(todo, run_map(functools.partial(_fit_both, particles=args.particles, seed=args.seed,
-                                                            output=args.output), todo)))
+                                                            output=args.output, draws=args.save_draws), todo)))
     rows = [done[u] or fitted[u] for u in args.units]
     (args.output / "smc.json").write_text(json.dumps({"source": mv.SOURCE, "particles": args.particles, "units": rows},
                                                      indent=1, default=float))
