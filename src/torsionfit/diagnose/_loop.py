@@ -247,7 +247,7 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
         removals += checks
         drop = next((r for r in checks if r.dropped), None)
         if drop is None and options.swap and len(steps) >= options.max_effects:
-            swap = _swap(campaign, options, seed, current, steps, checks, added | dropped, rejected, say)
+            swap = _swap(campaign, options, seed, current, steps, checks, added, dropped, rejected, say)
             if swap is None:
                 break
             removal, step = swap
@@ -368,7 +368,7 @@ def _backward(campaign: Campaign, options: DiagnoseOptions, seed: int, current: 
 
 
 def _swap(campaign: Campaign, options: DiagnoseOptions, seed: int, current: Fitted, steps: list, checks: list,
-          taken: set, rejected: list, say) -> tuple[Removal, Step] | None:
+          added: set, dropped: set, rejected: list, say) -> tuple[Removal, Step] | None:
     """A trail at its ``max_effects``: the kept effect that earns the least over the model
     without it (its backward check, or for the last step its own step) refitted out and each of
     the next ``candidates_per_step`` significant signatures of ``current`` in its place.
@@ -381,8 +381,10 @@ def _swap(campaign: Campaign, options: DiagnoseOptions, seed: int, current: Fitt
     if not weakest:
         return None
     gain, without, weak = min(weakest, key=lambda w: w[0])
-    found = _signatures(current.context, options, taken)
-    candidates = sorted((fe for fe in found if fe[1].significant(options.alpha)), key=lambda fe: _gain_rank(fe[1]))
+    found = _signatures(current.context, options, added)
+    # never one dropped or swapped out before (a growable effect is offered again when added)
+    candidates = sorted((fe for fe in found if fe[1].significant(options.alpha) and fe[0].name not in dropped),
+                        key=lambda fe: _gain_rank(fe[1]))
     best = None
     for effect, ev in candidates[: options.candidates_per_step]:
         say(f"trying {effect.name} in place of {weak.effect} (the weakest kept effect, ΔELPD {gain:.1f}; swap)")
