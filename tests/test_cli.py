@@ -162,6 +162,15 @@ def test_diagnose_passes_its_signature_option(tmp_path, monkeypatch, flag, robus
                        lambda robust_signatures: robust_signatures, part=lambda o: o.robust_signatures) is robust
 
 
+@pytest.mark.parametrize("flag, checks", [([], (True, True)), (["--no-swap"], (True, False)),
+                                          (["--no-backward"], (False, True))])
+def test_diagnose_passes_its_backward_and_swap_options(tmp_path, monkeypatch, flag, checks):
+    import torsionfit.diagnose as diagnose_module
+
+    assert _noise_seen(tmp_path, monkeypatch, diagnose_module, "diagnose", "diagnose", flag,
+                       lambda o: (o.backward, o.swap), part=lambda o: o) == checks
+
+
 @pytest.mark.parametrize("flag, on", [([], False), (["--class-noise"], True)])
 def test_fit_passes_the_class_noise_option(tmp_path, monkeypatch, flag, on):
     import torsionfit.report as report_module
