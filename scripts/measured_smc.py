@@ -122,7 +122,9 @@ def markdown(rows: list[dict], particles: int) -> str:
     lines += ["", mv.environment_text(rows)]
     not_conv = [r for r in rows if not r["smc"]["converged"]]
     for r in not_conv:
-        lines += ["", f"{r['unit']}: {r['smc']['reason']}."]
+        # a parameter's index (torque_knot[initial-pos6][5]) would read as a Markdown link
+        reason = r["smc"]["reason"].replace("[", "\\[")
+        lines += ["", f"{r['unit']}: {reason}."]
     return "\n".join(lines)
 
 
