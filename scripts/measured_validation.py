@@ -316,6 +316,7 @@ def fit_options(args, unit: str | None = None) -> FitOptions:
                       laplace_shape=args.laplace_shape,
                       max_steps=args.max_steps, n_starts=args.starts, misfit_inflation=not args.no_misfit_inflation,
                       hop_to_the_hold=getattr(args, "hop_to_the_hold", False),
+                      optima_mixture=getattr(args, "optima_mixture", False),
                       noise=NoiseOptions(ar1=None if args.ar1 else False, cycle_amplitude_noise=args.cycle_noise,
                                          student_t_dof=getattr(args, "student_t", None),
                                          cycle_class_noise=args.class_noise,
@@ -773,12 +774,28 @@ def coverage_text(share: float, band=COVERAGE_BAND) -> str:
     return f"{whole:.0f} %" if inside == shown else f"{100 * share:.1f} %"
 
 
-def posterior_text(sampler: str, laplace_shape: str) -> str:
+def posterior_text(sampler: str, laplace_shape: str, optima_mixture: bool = False) -> str:
     """How the table names the posterior of a run with ``sampler`` and ``laplace_shape``."""
     if sampler != "laplace":
         return sampler
+    if optima_mixture:
+        return ("laplace (a mixture of split normals, one at each distinct optimum the MAP starts reached, "
+                "weighted by its Laplace evidence: FitOptions.optima_mixture)")
     return "laplace (a split normal along the Laplace approximation's axes, each half-axis's width read off the posterior)" \
         if laplace_shape == "split" else "laplace (the Gaussian)"
+
+
+def mixture_text(rows: list[dict]) -> str:
+    """One line on the optima mixture's components (diagnostics.laplace_optima); empty without it."""
+    have = [r for r in rows if r["diagnostics"].get("laplace_optima") is not None]
+    if not have:
+        return ""
+    many = {r["unit"]: r["diagnostics"]["laplace_optima"] for r in have if len(r["diagnostics"]["laplace_optima"]) > 1}
+    text = f"Optima mixture: more than one component on {len(many)} of {len(have)} loops"
+    if many:
+        text += " (" + "; ".join(
+            f"{u}: weights " + ", ".join(f"{c['weight']:.2f}" for c in comps) for u, comps in many.items()) + ")"
+    return text + "."
 
 
 def _design(unit: str) -> str:
@@ -816,7 +833,7 @@ def environment_text(rows: list[dict]) -> str:
 
 
 def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise: str, laplace_shape: str = "gaussian",
-             hop: bool = False, hold_out_ramp: int = 1) -> str:
+             hop: bool = False, hold_out_ramp: int = 1, optima_mixture: bool = False) -> str:
     rows = sorted(rows, key=lambda r: r["unit"])  # the table in unit order, whatever order they were fitted in
     held = held_text(hold_out_ramp)
     split = ("without its last large ramp" if hold_out_ramp == 1 else
@@ -824,7 +841,7 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
     lines = [
         f"Measured loops ({SOURCE}). Model: {model_text(rows, effects)}, "
         + ("the MAP hopped to the hold mode where that is higher (--hop-to-the-hold), " if hop else "") +
-        f"{noise_text(noise)}, posterior by {posterior_text(sampler, laplace_shape)}, fitted to each file {split} (block means of {decimate} samples). "
+        f"{noise_text(noise)}, posterior by {posterior_text(sampler, laplace_shape, optima_mixture)}, fitted to each file {split} (block means of {decimate} samples). "
         f"RMSE in arcsec on those block means, the model's and the reference's alike; held-out = {held} predicted from the file before it "
         "(posterior mean of the draws' predictions; (MAP): the prediction of the MAP alone); "
         "reference = Prandtl–Ishlinskii + tanh gap by NNLS (benchmarks/pi_reference.py) on the same split, as designed "
@@ -870,6 +887,8 @@ def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise
     optima_text = rival_text(rows)
     if optima_text:
         lines += ["", optima_text]
+    if mixture_text(rows):
+        lines += ["", mixture_text(rows)]
     env_text = environment_text(rows)
     if env_text:
         lines += ["", env_text]
@@ -1022,6 +1041,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--condition-first-ramp", action="store_true",
                         help="the file's first large ramp (test_nr 100) conditioning rows: it drives the model's state "
                              "but is out of the likelihood ([runs.condition])")
+    parser.add_argument("--optima-mixture", action="store_true",
+                        help="draws from a mixture of split normals over the optima the starts reached, weighted by "
+                             "their Laplace evidence (FitOptions.optima_mixture)")
     parser.add_argument("--hop-to-the-hold", action="store_true",
                         help="one more MAP run from the hold mode the cycles' readings point at (FitOptions.hop_to_the_hold)")
     parser.add_argument("--align-play-crossings", action="store_true",
@@ -1074,7 +1096,7 @@ def _main(args) -> int:
         # written before the noise / the Laplace shape were recorded: AR(1) / the Gaussian
         text = markdown(doc["units"], doc.get("decimate", args.decimate), doc.get("sampler", args.sampler), doc.get("effects", args.effects or EFFECTS),
                         doc.get("noise", "ar1"), doc.get("laplace_shape", "gaussian"), doc.get("hop_to_the_hold", False),
-                        doc.get("hold_out_ramp", 1))
+                        doc.get("hold_out_ramp", 1), doc.get("optima_mixture", False))
         (args.output / "validation.md").write_text(text + "\n")
         print(text)
         return 0
@@ -1097,7 +1119,7 @@ def _main(args) -> int:
         # each row is written as it comes (in order), so a run cut short keeps what it has done
         rows = _write_rows(args, units, results, kept)
     text = markdown(rows, args.decimate, args.sampler, args.effects or EFFECTS, _noise(args), args.laplace_shape, args.hop_to_the_hold,
-                    args.hold_out_ramp)
+                    args.hold_out_ramp, args.optima_mixture)
     (args.output / "validation.md").write_text(text + "\n")
     print(text)
     return 0
@@ -1112,8 +1134,9 @@ def _kept_rows(args, units) -> list[dict]:
     doc = json.loads(path.read_text())
     settings = {"decimate": args.decimate, "sampler": args.sampler, "noise": _noise(args), "laplace_shape": args.laplace_shape,
                 "hop_to_the_hold": args.hop_to_the_hold, "align_play_crossings": args.align_play_crossings,
+                "optima_mixture": args.optima_mixture,
                 "hold_out_ramp": args.hold_out_ramp}
-    recorded = {"hop_to_the_hold": False, "align_play_crossings": False, "hold_out_ramp": 1, **doc}  # written only when on
+    recorded = {"hop_to_the_hold": False, "align_play_crossings": False, "optima_mixture": False, "hold_out_ramp": 1, **doc}  # written only when on
     for key, value in settings.items():
         if recorded.get(key) != value:
             raise SystemExit(f"--append: {path} was written with {key} = {recorded.get(key)!r}, this run has {value!r}")
@@ -1134,6 +1157,7 @@ def _write_rows(args, units, results, kept: list[dict]) -> list[dict]:
                                                                        "laplace_shape": args.laplace_shape,
                                                                        **({"hold_out_ramp": args.hold_out_ramp} if args.hold_out_ramp != 1 else {}),
                                                                        **({"hop_to_the_hold": True} if args.hop_to_the_hold else {}),
+                                                                       **({"optima_mixture": True} if args.optima_mixture else {}),
                                                                        **({"align_play_crossings": True} if args.align_play_crossings else {}),
                                                                        "units": rows},
                                                                       indent=1, default=float))

@@ -518,3 +518,18 @@ def test_the_table_counts_the_loops_whose_starts_reached_a_rival_optimum():
     assert "ended at 0–2 other points at least a posterior sd from it (median 0; 1 of them short" in text
     assert "on 1 of 3 loops another converged optimum" in text and "0.8–0.8 below" in text and "240–240 sd away" in text
     assert mv.rival_text([{"unit": "a", "diagnostics": {}}]) == ""
+
+
+def test_the_optima_mixture_option_reaches_the_fit_and_the_table_says_what_it_kept():
+    """``--optima-mixture`` sets ``FitOptions.optima_mixture``; the table's header names the
+    mixture and one line lists the loops with more than one component and their weights
+    (none without the option's rows)."""
+    assert mv.fit_options(mv.parse_args(["--optima-mixture"])).optima_mixture
+    assert not mv.fit_options(mv.parse_args([])).optima_mixture
+    assert "mixture of split normals" in mv.posterior_text("laplace", "split", True)
+    assert "mixture" not in mv.posterior_text("laplace", "split", False)
+    one = {"weight": 1.0, "log_density_gap": 0.0, "distance_sd": 0.0}
+    rows = [{"unit": "a", "diagnostics": {"laplace_optima": [one]}},
+            {"unit": "b", "diagnostics": {"laplace_optima": [{**one, "weight": 0.3}, {**one, "weight": 0.7}]}}]
+    assert mv.mixture_text(rows) == "Optima mixture: more than one component on 1 of 2 loops (b: weights 0.30, 0.70)."
+    assert mv.mixture_text([{"unit": "a", "diagnostics": {}}]) == ""

@@ -230,6 +230,31 @@ def test_split_normal_of_a_widened_posterior_is_centred_at_its_mode(laplace_fit)
     assert at_centre < 1e-3 * at_map
 
 
+def test_the_optima_mixture_keeps_one_component_where_the_starts_found_one_optimum(laplace_fit):
+    """A unimodal (bench) posterior: an 'other optimum' that is the MAP itself, or a point on its
+    slope 8 sd off (a start that stopped short), moves to the mode and is the same component —
+    the mixture is the split normal alone, weight 1."""
+    from torsionfit.fit._misfit import widened
+    from torsionfit.report._pipeline import laplace_approximation, optima_mixture
+
+    _, fit = laplace_fit
+    problem, map_result = widened(fit.problem, fit.map_result, 4.0)
+    main = laplace_approximation(problem, map_result, "split")
+    n = problem.n_nonlinear
+    sd = np.sqrt(np.diag(map_result.cov))
+    off = np.array(map_result.u, float)
+    off[:n] += 8.0 * sd[:n] / np.sqrt(n)
+    mix, rows = optima_mixture(problem, map_result, main, [np.asarray(map_result.u), off])
+    assert len(mix.components) == 1 and mix.components[0] is main
+    assert rows == [{"weight": 1.0, "log_density_gap": 0.0, "distance_sd": 0.0}]
+
+
+def test_the_optima_mixture_needs_the_split_shape(noisy_bench):
+    sim = simulate(load_bench(noisy_bench), seed=4)
+    with pytest.raises(Exception, match="optima_mixture needs laplace_shape='split'"):
+        fit_campaign(sim.campaign, FitOptions(sampler="laplace", n_starts=1, optima_mixture=True), seed=0)
+
+
 def test_laplace_note_names_physics_axes_far_from_gaussian():
     from torsionfit.report._pipeline import laplace_note
     from torsionfit.sample import SplitNormal

@@ -86,6 +86,9 @@ class FitOptions:
     # one more LM run from the MAP of a model with a held gap, from the hold mode the cycles'
     # readings point at (:func:`hop_to_the_hold`); measured on the 21 measured loops, an option
     hop_to_the_hold: bool = False
+    # the split normal of each other optimum the starts reached beside the MAP's, the draws a
+    # mixture weighted by their Laplace evidence (:func:`optima_mixture`); ``laplace_shape`` "split"
+    optima_mixture: bool = False
 
     @property
     def map_budget(self) -> dict:
@@ -292,7 +295,9 @@ def fit_campaign(campaign: Campaign, options: FitOptions = FitOptions(), seed: i
         problem, map_result = widen_for_misfit(problem, map_result)
     log.info("MAP %s; now the posterior (%s) and the metrics", "converged" if map_result.converged
              else f"not converged ({map_result.message})", options.sampler)
-    fit = finish_fit(campaign, options, model, problem, map_result, seed)
+    # the other optima the starts reached (the MAP among them: the mixture drops what repeats it)
+    others = [np.asarray(u) for _, u, converged in first.optima if converged] if options.optima_mixture else ()
+    fit = finish_fit(campaign, options, model, problem, map_result, seed, other_optima=others)
     _record_rival_optima(fit.diagnostics, first, problem, map_result)
     return fit
 
@@ -376,15 +381,18 @@ def auto_switch_rule(max_steps: int, tau_factor: float = 50.0):
 
 
 @in_float64
-def run_smc(problem, map_result, options: FitOptions, seed: int):
+def run_smc(problem, map_result, options: FitOptions, seed: int, other_optima=()):
     """Tempered SMC (:func:`~torsionfit.sample.tempered_smc`) from the split normal along the
     Laplace axes to ``problem``'s posterior (widened, when it is), ``options.smc_particles``
     particles moved by HMC (the posterior's gradient by JAX, in chunks of
-    :data:`GRADIENT_BATCH`)."""
+    :data:`GRADIENT_BATCH`). With ``options.optima_mixture`` the particles start from the mixture
+    over ``other_optima`` and the MAP's (:func:`optima_mixture`), in every optimum by its weight."""
     from ..sample import tempered_smc
     from ..sample._emcee import _LogProb, _LogProbGrad
 
     approximation = laplace_approximation(problem, map_result, "split")
+    if options.optima_mixture:
+        approximation, _ = optima_mixture(problem, map_result, approximation, other_optima)
     log_density = _LogProb(problem, batch=LOG_DENSITY_BATCH)
     names = tuple(getattr(map_result, "names", None) or (f"u[{i}]" for i in range(len(map_result.u))))
     return tempered_smc(log_density, approximation, np.random.default_rng(seed), options.smc_particles,
@@ -392,7 +400,7 @@ def run_smc(problem, map_result, options: FitOptions, seed: int):
                         progress=log.info if options.progress else None)
 
 
-def sample_posterior(problem, map_result, options: FitOptions, seed: int):
+def sample_posterior(problem, map_result, options: FitOptions, seed: int, other_optima=()):
     """(sample result, sampler used, reason of the choice) for the MCMC samplers.
 
     ``auto``: emcee with :func:`auto_switch_rule` checked at every 500-step check; when it
@@ -405,7 +413,7 @@ def sample_posterior(problem, map_result, options: FitOptions, seed: int):
     if options.sampler == "nuts":
         return run_nuts(problem, map_result, **nuts_kwargs(options, seed)), "nuts", "asked for (--sampler nuts)"
     if options.sampler == "smc":
-        return run_smc(problem, map_result, options, seed), "smc", "asked for (--sampler smc)"
+        return run_smc(problem, map_result, options, seed, other_optima), "smc", "asked for (--sampler smc)"
     with warnings.catch_warnings():
         from ..sample import ConvergenceWarning
 
@@ -521,6 +529,67 @@ def laplace_approximation(problem, map_result, shape: str):
     return split_normal(log_density, centre, map_result.cov)
 
 
+#: two optima closer than this many posterior sd (either's) are one component of the mixture
+MIXTURE_SAME_SD = 3.0
+#: an optimum below the MAP's widened log posterior by more than this is not tried (its weight
+#: would be below e⁻¹⁰ of the MAP's for components of about equal volume)
+MIXTURE_MAX_GAP = 10.0
+#: a component whose weight ends below this is dropped (and the weights renormalised)
+MIXTURE_MIN_WEIGHT = 1e-3
+
+
+def _physics_distance_sd(a, b, cov_physics) -> float:
+    d = np.asarray(a, float)[: len(cov_physics)] - np.asarray(b, float)[: len(cov_physics)]
+    return float(np.sqrt(max(d @ np.linalg.pinv(cov_physics) @ d, 0.0)))
+
+
+@in_float64
+def optima_mixture(problem, map_result, main, other_optima):
+    """(:class:`~torsionfit.sample.SplitNormalMixture`, rows): ``main`` (the MAP's split normal)
+    beside a split normal at each other optimum in ``other_optima`` (unconstrained points of the
+    starts' problem), weighted by their Laplace evidence. Each is moved to the mode of ``problem``
+    (widened, when it is) from its physics block with the MAP's noise block, its covariance the
+    tempered Laplace one there; one within :data:`MIXTURE_SAME_SD` of a kept component, more than
+    :data:`MIXTURE_MAX_GAP` below the MAP or whose weight ends below :data:`MIXTURE_MIN_WEIGHT` is
+    left out. ``rows``: per kept component its weight, log posterior below the MAP's component and
+    distance from it in the MAP's posterior sd."""
+    from ..fit._misfit import tempered_physics_covariance
+    from ..sample import SplitNormalMixture, evidence_log_weights, split_normal
+    from ..sample._emcee import _LogProb
+
+    log_density = _LogProb(problem, batch=LOG_DENSITY_BATCH)
+    n = problem.n_nonlinear
+    factor = 1.0 / float(problem.likelihood_power)
+    components = [main]
+    covs = [np.asarray(map_result.cov, float)[:n, :n]]
+    top = float(log_density(main.mean[None])[0])
+    for u in other_optima:
+        start = np.array(map_result.u, float)
+        start[:n] = np.asarray(u, float)[:n]
+        if float(log_density(start[None])[0]) < top - 3.0 * MIXTURE_MAX_GAP:
+            continue  # far below even before the move to the widened mode: not worth the search
+        mode = np.asarray(_tempered_mode(problem, jnp.asarray(start)), float)
+        lp = float(log_density(mode[None])[0]) if np.all(np.isfinite(mode)) else -np.inf
+        if not np.isfinite(lp) or lp < top - MIXTURE_MAX_GAP:
+            continue
+        if any(min(_physics_distance_sd(mode, c.mean, cv), _physics_distance_sd(c.mean, mode, cv)) < MIXTURE_SAME_SD
+               for c, cv in zip(components, covs)):
+            continue  # the same optimum as a kept one
+        cov = np.array(map_result.cov, float)
+        cov[:n, :n] = tempered_physics_covariance(problem, mode, factor)
+        components.append(split_normal(log_density, mode, cov))
+        covs.append(cov[:n, :n])
+    centres = np.stack([c.mean for c in components])
+    lps = np.asarray(log_density(centres), float)
+    lqs = np.array([c.log_density(c.mean[None])[0] for c in components])
+    log_w = evidence_log_weights(lps, lqs)
+    keep = [0] + [i for i in range(1, len(components)) if np.exp(log_w[i]) >= MIXTURE_MIN_WEIGHT]
+    log_w = evidence_log_weights(lps[keep], lqs[keep])
+    rows = [{"weight": float(np.exp(w)), "log_density_gap": float(lps[0] - lps[i]),
+             "distance_sd": _physics_distance_sd(centres[i], centres[0], covs[0])} for w, i in zip(log_w, keep)]
+    return SplitNormalMixture(tuple(components[i] for i in keep), log_w), rows
+
+
 @in_float64
 def approximation_pareto_k(problem, map_result, approximation, draws_u) -> float:
     """Pareto k̂ of the posterior/approximation density ratios at ``draws_u``, drawn from
@@ -576,12 +645,13 @@ def _mark_not_converged(diagnostics: dict, key: str, runs, reason: str) -> None:
 
 @in_float64
 def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_result, seed: int,
-               sample_result=None) -> CampaignFit:
+               sample_result=None, other_optima=()) -> CampaignFit:
     """Everything after the MAP: posterior (emcee or Laplace draws), derived metrics, RMSE —
     for a ``map_result`` of ``problem`` (``prepare_fit``) found one unit at a time or many at
     once (``torsionfit.batch``). ``sample_result``: the emcee run of ``run_sampler`` with
     ``sampler_kwargs(options, seed)``, when it was made already (the batch samples many units
-    together); else it is made here (:func:`sample_posterior`)."""
+    together); else it is made here (:func:`sample_posterior`). ``other_optima``: unconstrained
+    points of the other optima the starts reached, for ``options.optima_mixture``."""
     names = [r.name for r in campaign.runs]
     rng = np.random.default_rng(seed)
     if options.sampler not in SAMPLERS:
@@ -592,7 +662,7 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     tree_limit = pointwise_draw_limit(sum(len(y) for y in problem.y))
     if options.sampler != "laplace":
         if sample_result is None:
-            sample_result, used, choice = sample_posterior(problem, map_result, options, seed)
+            sample_result, used, choice = sample_posterior(problem, map_result, options, seed, other_optima)
         else:
             used, choice = sample_result.sampler, "sampled with the other units of its shape (batch)"
         chain = np.asarray(sample_result.chain)
@@ -607,9 +677,14 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
         diagnostics = {"sampler": used, "sampler_choice_reason": choice}
     else:
         approximation = laplace_approximation(problem, map_result, options.laplace_shape)
+        mixture_rows = None
+        if options.optima_mixture:
+            if approximation is None:
+                raise InputError("optima_mixture needs laplace_shape='split' (a split normal per optimum)")
+            approximation, mixture_rows = optima_mixture(problem, map_result, approximation, other_optima)
         # a widened posterior (misfit) is where the Gaussian fails: its half-axes measured
         # anyway, to say so when the Gaussian's draws are used
-        measured = approximation
+        measured = getattr(approximation, "main", approximation)
         if approximation is None and problem.likelihood_power < 1.0:
             measured = laplace_approximation(problem, map_result, "split")
         if approximation is None:
@@ -628,6 +703,8 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
             "ess_min": float(options.laplace_draws),
             "reason": "" if map_result.converged else f"MAP did not converge: {map_result.message}",
         }
+        if mixture_rows is not None:
+            diagnostics["laplace_optima"] = mixture_rows
         pick = rng.choice(len(draws_u), size=min(options.metric_draws, len(draws_u)), replace=False)
         if measured is not None:
             # where the posterior's shape was measured (widened, or split drawn): do the draws stand

@@ -14,6 +14,7 @@ from ._nuts import (
     run_nuts as run_nuts,
 )
 from ._laplace import LaplaceResult as LaplaceResult, laplace_result as laplace_result
+from ._mixture import SplitNormalMixture as SplitNormalMixture, evidence_log_weights as evidence_log_weights
 from ._pareto import good_k as good_k, importance_pareto_k as importance_pareto_k
 from ._smc import SMCResult as SMCResult, tempered_smc as tempered_smc
 from ._split_normal import SplitNormal as SplitNormal, split_normal as split_normal
