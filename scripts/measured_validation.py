@@ -407,7 +407,7 @@ def validate(unit: str, folder: Path, args) -> dict:
     t, tau = np.asarray(run.time_s), np.asarray(run.torque_Nm)
     out.update(data_metrics(t, tau, y, unit))
     plays, comps = [], []
-    for row in pred[: args.metric_draws]:
+    for row in pred[: args.metric_draws or len(pred)]:
         try:
             classes = cycle_classes(t, tau, row, name=unit)  # once per draw, for both metrics
             play = play_of(classes.smallest)
@@ -816,9 +816,9 @@ def model_text(rows: list[dict], effects: dict) -> str:
     return "; ".join(f"base + {model} on the {', '.join(designs)} loops" for model, designs in by_model.items())
 
 
-def environment_text(rows: list[dict]) -> str:
+def environment_text(rows: list[dict], record: str = "validation.json") -> str:
     """Where the rows were computed (the fits repeat to the digit there, not elsewhere); empty
-    for rows written before the environment was recorded."""
+    for rows written before the environment was recorded. ``record``: the file that keeps each row's."""
     envs = [r["environment"] for r in rows if r.get("environment")]
     if not envs:
         return ""
@@ -826,7 +826,7 @@ def environment_text(rows: list[dict]) -> str:
     e = envs[0]
     packages = ", ".join(f"{name} {e[name]}" for name in NUMERICAL_PACKAGES if name in e)
     where = f"Python {e['python']}, {packages}; {e['cpu']}"
-    more = "" if len(distinct) == 1 else f" ({len(distinct)} environments among the rows: validation.json records each row's)"
+    more = "" if len(distinct) == 1 else f" ({len(distinct)} environments among the rows: {record} records each row's)"
     return (f"Computed with {where}{more}. A fit repeats to the digit on the same environment; on another (other package "
             "versions, another processor's instruction set) rounding moves the MAP within the solver's tolerance, and the "
             "columns read off it and the draws move with it.")
@@ -1014,7 +1014,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                              "the references seeing the ramps before it): is the held-out error a property of the file?")
     parser.add_argument("--starts", type=int, default=FitOptions().n_starts, help="MAP starts (default: the fit's)")
     parser.add_argument("--draws", type=int, default=200, help="posterior draws for the predictive interval")
-    parser.add_argument("--metric-draws", type=int, default=40, help="draws for the model's play and loading compliance")
+    parser.add_argument("--metric-draws", type=int, default=None,
+                        help="draws for the model's play and loading compliance (default: all of --draws; each costs "
+                             "a millisecond or two, and a 95 %% HDI from 40 moved its ends by up to 0.3° between runs)")
     parser.add_argument("--max-steps", type=int, default=20_000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--ar1", action="store_true",
