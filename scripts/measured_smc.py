@@ -41,9 +41,11 @@ def _row_path(output: Path, unit: str) -> Path:
     return output / "units" / f"{unit}.json"
 
 
-def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | None = None) -> dict:
-    """Fit one loop both ways and write its row at once (a run stopped part-way keeps its done loops)."""
-    args = mv.parse_args(["--units", unit, "-o", "unused"])
+def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | None = None,
+              optima_mixture: bool = False) -> dict:
+    """Fit one loop both ways and write its row at once (a run stopped part-way keeps its done loops).
+    ``optima_mixture``: both start from the mixture over the optima (FitOptions.optima_mixture)."""
+    args = mv.parse_args(["--units", unit, "-o", "unused", *(["--optima-mixture"] if optima_mixture else [])])
     path = mv._data_path(unit)
     ramps = mv.test_numbers(path)
     last = mv.held_ramp(ramps, 1)
@@ -57,6 +59,8 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
             seconds = time.perf_counter() - t0
             metrics, off = metrics_against_data(fit)
             d = fit.diagnostics
+            if sampler == "laplace" and optima_mixture:
+                out["laplace_optima"] = d.get("laplace_optima")
             if draws is not None:  # the particles / draws (unconstrained), to read other metrics off later
                 draws.mkdir(parents=True, exist_ok=True)
                 np.save(draws / f"{unit}-{sampler}.npy", np.asarray(fit.draws_u, np.float32))
@@ -70,19 +74,22 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
                                       "approximation_pareto_k", "smc_moves_kind")}),
             }
     out["particles"], out["seed"] = particles, seed
+    if optima_mixture:
+        out["optima_mixture"] = True
     path = _row_path(output, unit)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1, default=float))
     return out
 
 
-def _done_row(output: Path, unit: str, particles: int, seed: int) -> dict | None:
+def _done_row(output: Path, unit: str, particles: int, seed: int, optima_mixture: bool = False) -> dict | None:
     """The row a previous run wrote for this unit with the same settings, else None."""
     path = _row_path(output, unit)
     if not path.is_file():
         return None
     row = json.loads(path.read_text())
-    return row if (row.get("particles"), row.get("seed")) == (particles, seed) else None
+    same = (row.get("particles"), row.get("seed"), row.get("optima_mixture", False)) == (particles, seed, optima_mixture)
+    return row if same else None
 
 
 def _metric(entry: dict, name: str) -> str:
@@ -92,9 +99,11 @@ def _metric(entry: dict, name: str) -> str:
     return f"{m['mean']:.4g} ({m['hdi95'][0]:.4g}–{m['hdi95'][1]:.4g})"
 
 
-def markdown(rows: list[dict], particles: int) -> str:
+def markdown(rows: list[dict], particles: int, optima_mixture: bool = False) -> str:
+    start = (", both from the mixture of split normals over the optima the MAP starts reached, weighted by their Laplace "
+             "evidence (--optima-mixture; the 'split normal' columns are that mixture's draws)" if optima_mixture else "")
     lines = [
-        f"Tempered SMC against the split normal on measured loops ({mv.SOURCE}), each fitted as the validation fits it "
+        f"Tempered SMC against the split normal on measured loops ({mv.SOURCE}), each fitted as the validation fits it{start} "
         f"(`scripts/measured_smc.py`; SMC: {particles} particles, HMC moves of 8 leapfrog steps with the particles' "
         "covariance as inverse mass matrix, at most 100 moves per stage). k: the Pareto k of "
         "posterior/split normal at the split normal's draws (≤ 0.7: they stand for the posterior); stages: tempering "
@@ -119,7 +128,11 @@ def markdown(rows: list[dict], particles: int) -> str:
             f"{len(b['smc_betas'])} | {', '.join(map(str, b['smc_moves']))} | {b['smc_correlation_max']:.2f} | "
             f"{b['converged']} | "
             f"{a['seconds']:.0f} / {b['seconds']:.0f} |")
-    lines += ["", mv.environment_text(rows)]
+    lines += ["", mv.environment_text(rows, "smc.json")]
+    for r in rows:
+        if r.get("laplace_optima"):
+            lines += ["", f"{r['unit']}: the mixture's weights " + ", ".join(f"{c['weight']:.2f}" for c in r["laplace_optima"])
+                      + " (the MAP's component first)."]
     not_conv = [r for r in rows if not r["smc"]["converged"]]
     for r in not_conv:
         # a parameter's index (torque_knot[initial-pos6][5]) would read as a Markdown link
@@ -137,6 +150,9 @@ def main(argv=None) -> int:
     p.add_argument("--jobs", type=int, default=1)
     p.add_argument("--save-draws", type=Path, default=None, metavar="FOLDER",
                    help="also save each fit's draws (unconstrained parameters, .npy) in FOLDER")
+    p.add_argument("--optima-mixture", action="store_true",
+                   help="start both from the mixture of split normals over the optima the MAP starts reached "
+                        "(FitOptions.optima_mixture)")
     p.add_argument("--force", action="store_true",
                    help="refit loops whose row a previous run with the same settings wrote (default: reuse it)")
     args = p.parse_args(argv)
@@ -144,18 +160,19 @@ def main(argv=None) -> int:
         print(f"{mv.DATA} is absent: nothing to fit")
         return 0
     args.output.mkdir(parents=True, exist_ok=True)
-    done = {u: None if args.force else _done_row(args.output, u, args.particles, args.seed) for u in args.units}
+    done = {u: None if args.force else _done_row(args.output, u, args.particles, args.seed, args.optima_mixture) for u in args.units}
     todo = [u for u in args.units if done[u] is None]
     for u in args.units:
         if done[u] is not None:
             print(f"{u}: reusing {_row_path(args.output, u)} (--force refits it)")
     with executor(workers=args.jobs) as run_map:
         fitted = dict(zip(todo, run_map(functools.partial(_fit_both, particles=args.particles, seed=args.seed,
-                                                            output=args.output, draws=args.save_draws), todo)))
+                                                            output=args.output, draws=args.save_draws,
+                                                            optima_mixture=args.optima_mixture), todo)))
     rows = [done[u] or fitted[u] for u in args.units]
     (args.output / "smc.json").write_text(json.dumps({"source": mv.SOURCE, "particles": args.particles, "units": rows},
                                                      indent=1, default=float))
-    text = markdown(rows, args.particles)
+    text = markdown(rows, args.particles, args.optima_mixture)
     (args.output / "smc.md").write_text(text + "\n")
     print(text)
     return 0

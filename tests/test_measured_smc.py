@@ -45,3 +45,22 @@ def test_a_loops_row_is_reused_only_with_the_same_particles_and_seed(tmp_path):
     assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 1000, 0) is None
     assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 1) is None
     assert ms._done_row(tmp_path, "split-pccf-initial-pos5", 500, 0) is None
+    assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 0, optima_mixture=True) is None
+
+
+def test_a_run_from_the_optima_mixture_says_so_and_lists_each_loops_weights(tmp_path):
+    """Rows started from the mixture over the optima are their own: not reused for a run from the
+    split normal, nor the other way round; the page names the start and the weights it kept."""
+    path = ms._row_path(tmp_path, "split-pccf-initial-pos6")
+    path.parent.mkdir(parents=True)
+    path.write_text('{"unit": "split-pccf-initial-pos6", "particles": 500, "seed": 0, "optima_mixture": true}')
+    assert ms._done_row(tmp_path, "split-pccf-initial-pos6", 500, 0) is None
+    assert ms._done_row(tmp_path, "split-pccf-initial-pos6", 500, 0, optima_mixture=True) is not None
+    row = {"unit": "split-pccf-initial-pos6", "environment": environment(), "optima_mixture": True,
+           "laplace_optima": [{"weight": 0.86}, {"weight": 0.08}, {"weight": 0.06}],
+           "laplace": _entry((10.8, 10.5, 11.3), (0.1829, 0.1824, 0.1835), []),
+           "smc": _entry((10.5, 8.3, 12.6), (0.1820, 0.1770, 0.1878), [], smc_betas=[0.5, 1.0], smc_moves=[5, 9],
+                         smc_acceptance=[0.6, 0.6], smc_correlation_max=0.05, approximation_pareto_k=1.0)}
+    text = ms.markdown([row], 500, optima_mixture=True)
+    assert "--optima-mixture" in text and "split-pccf-initial-pos6: the mixture's weights 0.86, 0.08, 0.06" in text
+    assert "--optima-mixture" not in ms.markdown([row], 500)
