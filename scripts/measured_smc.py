@@ -70,8 +70,8 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
                 "metrics": {k: {"mean": metrics[k]["mean"], "hdi95": metrics[k]["hdi95"], "unit": metrics[k]["unit"],
                                 "data": (metrics[k].get("data") or {}).get("value")} for k in METRICS if k in metrics},
                 **({"pareto_k": d.get("laplace_pareto_k")} if sampler == "laplace" else
-                   {k: d[k] for k in ("smc_betas", "smc_moves", "smc_acceptance", "smc_correlation_max",
-                                      "approximation_pareto_k", "smc_moves_kind")}),
+                   {k: d.get(k) for k in ("smc_betas", "smc_moves", "smc_acceptance", "smc_correlation_max",
+                                          "approximation_pareto_k", "smc_moves_kind", "smc_modes", "smc_mode_shares")}),
             }
     out["particles"], out["seed"] = particles, seed
     if optima_mixture:
@@ -108,7 +108,8 @@ def markdown(rows: list[dict], particles: int, optima_mixture: bool = False) -> 
         "covariance as inverse mass matrix, at most 100 moves per stage). k: the Pareto k of "
         "posterior/split normal at the split normal's draws (≤ 0.7: they stand for the posterior); stages: tempering "
         "steps from the split normal to the posterior; correlation: the largest correlation of a coordinate with its "
-        "value at the start of its stage after the moves (converged only when at most 0.1 at every stage); metrics: "
+        "value at the start of its stage after the moves (converged only when at most 0.1 at every stage), read within "
+        "separated modes where the particles sit in such (rows made before the rule say nothing of modes); metrics: "
         "model mean (95 % HDI) / the data's reading of the same record; off: the class metrics whose HDI misses "
         "the data's reading by more than two of its standard errors.",
         "",
@@ -133,6 +134,14 @@ def markdown(rows: list[dict], particles: int, optima_mixture: bool = False) -> 
         if r.get("laplace_optima"):
             lines += ["", f"{r['unit']}: the mixture's weights " + ", ".join(f"{c['weight']:.2f}" for c in r["laplace_optima"])
                       + " (the MAP's component first)."]
+    for r in rows:
+        modes = r["smc"].get("smc_modes") or []
+        if max(modes, default=1) > 1:
+            stages = ", ".join(str(i + 1) for i, k in enumerate(modes) if k > 1)
+            shares = ", ".join(f"{s:.2f}" for s in r["smc"].get("smc_mode_shares") or [])
+            lines += ["", f"{r['unit']}: the particles sat in separated modes the moves do not cross at stage(s) {stages} "
+                          f"(the correlation read within them; at the last stage {len(r['smc']['smc_mode_shares'])} "
+                          f"modes, shares {shares}, set by the tempering's weights)."]
     not_conv = [r for r in rows if not r["smc"]["converged"]]
     for r in not_conv:
         # a parameter's index (torque_knot[initial-pos6][5]) would read as a Markdown link

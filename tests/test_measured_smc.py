@@ -64,3 +64,16 @@ def test_a_run_from_the_optima_mixture_says_so_and_lists_each_loops_weights(tmp_
     text = ms.markdown([row], 500, optima_mixture=True)
     assert "--optima-mixture" in text and "split-pccf-initial-pos6: the mixture's weights 0.86, 0.08, 0.06" in text
     assert "--optima-mixture" not in ms.markdown([row], 500)
+
+
+def test_a_loop_whose_particles_sat_in_separated_modes_says_where_and_with_what_shares():
+    smc = dict(smc_betas=[0.5, 1.0], smc_moves=[12, 40], smc_acceptance=[0.6, 0.6], smc_correlation_max=0.08,
+               approximation_pareto_k=1.1, smc_modes=[1, 2], smc_mode_shares=[0.31, 0.69])
+    row = {"unit": "split-pccf-initial-pos6", "environment": environment(),
+           "laplace": _entry((10.8, 10.5, 11.3), (0.1829, 0.1824, 0.1835), []),
+           "smc": _entry((10.5, 8.3, 12.6), (0.1820, 0.1770, 0.1878), [], **smc)}
+    text = ms.markdown([row], 500)
+    assert "split-pccf-initial-pos6: the particles sat in separated modes the moves do not cross at stage(s) 2" in text
+    assert "2 modes, shares 0.31, 0.69" in text
+    row["smc"]["smc_modes"] = [1, 1]
+    assert "separated modes the moves do not cross" not in ms.markdown([row], 500)

@@ -20,7 +20,10 @@ these did not forget their start within 100 moves near β = 1 (largest correlati
 The moves go on until every coordinate's
 correlation with the particles' positions at the start of the stage has fallen to
 ``decorrelation`` — the particles have forgotten where resampling put them — or
-``max_moves`` is reached, which counts as not converged. At β = 1 the particles are equally
+``max_moves`` is reached, which counts as not converged. Where the moved particles sit in
+modes separated by many of their widths (:mod:`._modes`), the correlation is measured
+within them: the moves do not cross between such modes, and the particles' shares in them come
+from the tempering's weights, not from the moves. At β = 1 the particles are equally
 weighted draws of p (Del Moral, Doucet & Jasra 2006; Chopin & Papaspiliopoulos 2020, ch. 17).
 
 The sampler calls the posterior (and its gradient) in batches (one compiled program for all
@@ -37,6 +40,7 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 from ._emcee import SampleResult
+from ._modes import separated_modes, within_mode_correlations
 from ._pareto import importance_pareto_k
 
 #: the acceptance the random walk's scale is tuned towards (Roberts, Gelman & Gilks 1997)
@@ -66,7 +70,7 @@ class SMCResult(SampleResult):
     ``log_prob`` (particles, 1). ``betas``: the tempering schedule (last 1.0 when it reached the
     posterior); per stage ``moves`` (random-walk steps), ``stage_acceptance`` and
     ``stage_correlation`` (the largest |correlation| of a coordinate with its value at the start
-    of the stage, after the moves); ``approximation_pareto_k``: the Pareto k of p/q at q's draws
+    of the stage, after the moves, within the stage's separated modes: ``stage_modes``); ``approximation_pareto_k``: the Pareto k of p/q at q's draws
     (how far the approximation was from the posterior); ``stage_step_size``: HMC's step size
     per stage (empty for random-walk moves)."""
 
@@ -77,6 +81,11 @@ class SMCResult(SampleResult):
     approximation_pareto_k: float = float("nan")
     #: HMC moves: each stage's step size (in the particles' scale); empty for random-walk moves
     stage_step_size: tuple = ()
+    #: per stage the separated modes among the particles after its moves (:mod:`._modes`): the
+    #: moves do not cross between them, and ``stage_correlation`` is measured within them
+    stage_modes: tuple = ()
+    #: the share of the particles in each mode after the last stage's moves (one entry: one mode)
+    mode_shares: tuple = ()
 
     sampler = "smc"
 
@@ -108,16 +117,6 @@ def _systematic(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     n = weights.size
     idx = np.searchsorted(np.cumsum(weights), (rng.random() + np.arange(n)) / n)
     return np.minimum(idx, n - 1)
-
-
-def _correlations(start: np.ndarray, now: np.ndarray) -> np.ndarray:
-    """|correlation| of each coordinate between the particles' positions at the start of a stage
-    and now (0 for a coordinate that does not vary)."""
-    a = start - start.mean(axis=0)
-    b = now - now.mean(axis=0)
-    den = np.sqrt((a**2).sum(axis=0) * (b**2).sum(axis=0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(den > 0, np.abs((a * b).sum(axis=0)) / den, 0.0)
 
 
 def _particle_covariance(x: np.ndarray) -> np.ndarray:
@@ -234,6 +233,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
     where it is zero): the moves are then HMC of ``leapfrog_steps``, else random-walk
     Metropolis. ``progress``: called with one line per stage."""
     names = tuple(names)
+    min_moves = max(1, min(min_moves, max_moves))
     x = np.asarray(approximation.draw(rng, n_particles), float)
     n, dim = x.shape
     lq = np.asarray(approximation.log_density(x), float)
@@ -246,7 +246,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         lp, gp = (np.asarray(a, float) for a in log_p_and_grad(x))
         state = [x, lp, lq, gp]
     k_q = importance_pareto_k(lp, lq)
-    beta, betas, moves, accept, corr, slowest, steps = 0.0, [], [], [], [], [], []
+    beta, betas, moves, accept, corr, slowest, steps, modes = 0.0, [], [], [], [], [], [], []
     reason = ""
     while beta < 1.0:
         if len(betas) >= max_stages:
@@ -270,9 +270,19 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
             rate = kernel.move(m, state, rng)
             if rate is not None:
                 rates.append(rate)
-            if m >= min_moves and np.max(_correlations(start, state[0])) <= decorrelation:
+            if m < min_moves:
+                continue
+            # modes the moves cannot cross keep their particles: the decorrelation is asked
+            # within the modes they sit in now, whose shares the tempering's weights set
+            labels = np.zeros(n, int)
+            by_coordinate = within_mode_correlations(start, state[0], labels)
+            if np.max(by_coordinate) > decorrelation:  # the modes looked for only where it matters
+                labels = separated_modes(state[0][:, by_coordinate > decorrelation])
+                if labels.max() > 0:
+                    by_coordinate = within_mode_correlations(start, state[0], labels)
+            if np.max(by_coordinate) <= decorrelation:
                 break
-        by_coordinate = _correlations(start, state[0])
+        modes.append(int(labels.max()) + 1)
         moves.append(m)
         accept.append(float(np.mean(rates)))
         corr.append(float(np.max(by_coordinate)))
@@ -281,7 +291,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
             steps.append(float(kernel.step))
         if progress is not None:
             progress(f"[smc] stage {len(betas)}: β = {beta:.4f}, {m} moves, acceptance {accept[-1]:.2f}, "
-                     f"correlation with the stage's start {corr[-1]:.2f}")
+                     f"correlation with the stage's start {corr[-1]:.2f}" + (f" within {modes[-1]} modes" if modes[-1] > 1 else ""))
     x, lp = state[0], state[1]
     if not reason and max(corr, default=0.0) > decorrelation:
         stuck = [i + 1 for i, c in enumerate(corr) if c > decorrelation]
@@ -300,4 +310,5 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         reason=reason, names=names, seed=seed,
         moves=f"tempered SMC from the split normal: {n} particles, {len(betas)} stages, {how}",
         betas=tuple(betas), stage_moves=tuple(moves), stage_acceptance=tuple(accept), stage_correlation=tuple(corr),
-        approximation_pareto_k=float(k_q), stage_step_size=tuple(steps))
+        approximation_pareto_k=float(k_q), stage_step_size=tuple(steps), stage_modes=tuple(modes),
+        mode_shares=tuple(float(s) for s in np.bincount(labels) / n) if betas else ())
