@@ -50,6 +50,7 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
     ramps = mv.test_numbers(path)
     last = mv.held_ramp(ramps, 1)
     out = {"unit": unit, "environment": environment()}
+    draws_of, names = {}, []
     with torsionfit.float64(), tempfile.TemporaryDirectory() as folder:
         train = load_campaign(mv.manifest(unit, [r for r in ramps if r < last], Path(folder), None))
         for sampler in ("laplace", "smc"):
@@ -59,6 +60,7 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
             seconds = time.perf_counter() - t0
             metrics, off = metrics_against_data(fit)
             d = fit.diagnostics
+            draws_of[sampler], names = np.asarray(fit.draws_u), list(fit.map_result.names)
             if sampler == "laplace" and optima_mixture:
                 out["laplace_optima"] = d.get("laplace_optima")
             if draws is not None:  # the particles / draws (unconstrained), to read other metrics off later
@@ -73,6 +75,7 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
                    {k: d.get(k) for k in ("smc_betas", "smc_moves", "smc_acceptance", "smc_correlation_max",
                                           "approximation_pareto_k", "smc_moves_kind", "smc_modes", "smc_mode_shares")}),
             }
+    out["departure"] = departure(draws_of["laplace"], draws_of["smc"], names)
     out["particles"], out["seed"] = particles, seed
     if optima_mixture:
         out["optima_mixture"] = True
@@ -80,6 +83,21 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1, default=float))
     return out
+
+
+#: coordinates listed per loop where the SMC particles depart most from the split normal's draws
+DEPARTURE_SHOWN = 5
+
+
+def departure(split_normal: np.ndarray, particles: np.ndarray, names: list[str]) -> list[dict]:
+    """The coordinates (unconstrained) whose SMC marginal departs most from the split normal's:
+    the shift of the mean in the split normal's sd and the ratio of the sds, largest shift first."""
+    sd = split_normal.std(axis=0)
+    shift = (particles.mean(axis=0) - split_normal.mean(axis=0)) / np.where(sd > 0, sd, np.inf)
+    width = particles.std(axis=0) / np.where(sd > 0, sd, np.inf)
+    order = np.argsort(-np.abs(shift))[:DEPARTURE_SHOWN]
+    return [{"name": names[i] if i < len(names) else f"u[{i}]", "shift_sd": float(shift[i]), "width_ratio": float(width[i])}
+            for i in order]
 
 
 def _done_row(output: Path, unit: str, particles: int, seed: int, optima_mixture: bool = False) -> dict | None:
@@ -142,6 +160,11 @@ def markdown(rows: list[dict], particles: int, optima_mixture: bool = False) -> 
             lines += ["", f"{r['unit']}: the particles sat in separated modes the moves do not cross at stage(s) {stages} "
                           f"(the correlation read within them; at the last stage {len(r['smc']['smc_mode_shares'])} "
                           f"modes, shares {shares}, set by the tempering's weights)."]
+    for r in rows:
+        if r.get("departure"):
+            lines += ["", f"{r['unit']}: where the particles depart most from the split normal (unconstrained "
+                          "coordinates; mean shift in the split normal's sd, sd ratio): " + "; ".join(
+                              f"{d['name']} {d['shift_sd']:+.1f} sd, ×{d['width_ratio']:.1f}" for d in r["departure"]) + "."]
     not_conv = [r for r in rows if not r["smc"]["converged"]]
     for r in not_conv:
         # a parameter's index (torque_knot[initial-pos6][5]) would read as a Markdown link

@@ -5,6 +5,9 @@ import importlib.util
 import sys
 from pathlib import Path
 
+import numpy as np
+import pytest
+
 from torsionfit._provenance import environment
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -77,3 +80,18 @@ def test_a_loop_whose_particles_sat_in_separated_modes_says_where_and_with_what_
     assert "2 modes, shares 0.31, 0.69" in text
     row["smc"]["smc_modes"] = [1, 1]
     assert "separated modes the moves do not cross" not in ms.markdown([row], 500)
+
+
+def test_the_departure_lists_the_coordinates_the_particles_moved_most_first_in_the_split_normals_sd():
+    rng = np.random.default_rng(0)
+    split = rng.normal(size=(4000, 3))
+    particles = rng.normal(size=(500, 3)) * [1.0, 3.0, 1.0] + [0.0, 0.0, -6.0]
+    rows = ms.departure(split, particles, ["gap", "preload_lift_torque", "gap_hold_torque"])
+    assert rows[0]["name"] == "gap_hold_torque" and rows[0]["shift_sd"] == pytest.approx(-6.0, abs=0.3)
+    assert next(r for r in rows if r["name"] == "preload_lift_torque")["width_ratio"] == pytest.approx(3.0, rel=0.1)
+    row = {"unit": "split-pccf-initial-pos6", "environment": environment(), "departure": rows,
+           "laplace": _entry((10.8, 10.5, 11.3), (0.1829, 0.1824, 0.1835), []),
+           "smc": _entry((10.5, 8.3, 12.6), (0.1820, 0.1770, 0.1878), [], smc_betas=[1.0], smc_moves=[5],
+                         smc_acceptance=[0.6], smc_correlation_max=0.05, approximation_pareto_k=1.0)}
+    assert "where the particles depart most from the split normal" in ms.markdown([row], 500)
+    assert f"gap_hold_torque {rows[0]['shift_sd']:+.1f} sd" in ms.markdown([row], 500)
