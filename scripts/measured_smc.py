@@ -65,7 +65,7 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
                 out["laplace_optima"] = d.get("laplace_optima")
             if draws is not None:  # the particles / draws (unconstrained), to read other metrics off later
                 draws.mkdir(parents=True, exist_ok=True)
-                np.save(draws / f"{unit}-{sampler}.npy", np.asarray(fit.draws_u, np.float32))
+                np.save(draws / f"{unit}-{sampler}.npy", draws_of[sampler].astype(np.float32))
             out[sampler] = {
                 "seconds": seconds, "converged": bool(d["converged"]), "reason": d.get("reason", ""),
                 "off_data": off,
@@ -148,11 +148,10 @@ def markdown(rows: list[dict], particles: int, optima_mixture: bool = False) -> 
             f"{b['converged']} | "
             f"{a['seconds']:.0f} / {b['seconds']:.0f} |")
     lines += ["", mv.environment_text(rows, "smc.json")]
-    for r in rows:
+    for r in rows:  # per loop: the mixture's weights, the modes, the departure
         if r.get("laplace_optima"):
             lines += ["", f"{r['unit']}: the mixture's weights " + ", ".join(f"{c['weight']:.2f}" for c in r["laplace_optima"])
                       + " (the MAP's component first)."]
-    for r in rows:
         modes = r["smc"].get("smc_modes") or []
         if max(modes, default=1) > 1:
             stages = ", ".join(str(i + 1) for i, k in enumerate(modes) if k > 1)
@@ -160,7 +159,6 @@ def markdown(rows: list[dict], particles: int, optima_mixture: bool = False) -> 
             lines += ["", f"{r['unit']}: the particles sat in separated modes the moves do not cross at stage(s) {stages} "
                           f"(the correlation read within them; at the last stage {len(r['smc']['smc_mode_shares'])} "
                           f"modes, shares {shares}, set by the tempering's weights)."]
-    for r in rows:
         if r.get("departure"):
             lines += ["", f"{r['unit']}: where the particles depart most from the split normal (unconstrained "
                           "coordinates; mean shift in the split normal's sd, sd ratio): " + "; ".join(

@@ -27,8 +27,8 @@ KMEANS_STARTS = 4
 
 
 def _kmeans(z: np.ndarray, k: int) -> np.ndarray:
-    """Labels of the best of :data:`KMEANS_STARTS` seeded two-means … k-means runs (least
-    within-cluster sum of squares): the same particles give the same labels."""
+    """Labels of the best of :data:`KMEANS_STARTS` seeded k-means runs (least within-cluster sum
+    of squares): the same particles give the same labels."""
     best, best_ss = None, np.inf
     for seed in range(KMEANS_STARTS):
         centres, labels = kmeans2(z, k, minit="++", seed=np.random.default_rng(seed))
@@ -52,12 +52,13 @@ def _apart(a: np.ndarray, b: np.ndarray) -> float:
 
 def separated_modes(x: np.ndarray) -> np.ndarray:
     """Mode label (0 … k − 1) of each row of ``x`` (particles × the coordinates to look in):
-    all 0 when the particles sit in one mode. Give it the coordinates that may separate modes
-    (tempered SMC: those that remember their start): coordinates of one mode's spread each
-    count as much in k-means, and many of them hide a split along one. The k-means clustering (k ≤ :data:`MAX_MODES`, coordinates
-    standardised) with the most clusters whose every cluster holds :data:`MIN_MODE_SHARE` of
-    the particles and stands :data:`SEPARATED_MODES_SD` apart from its nearest; where none
-    does (more modes than that, or none), one mode — the stricter reading."""
+    all 0 when the particles sit in one mode. The labels are those of the k-means clustering
+    (k ≤ :data:`MAX_MODES`, coordinates standardised) with the most clusters of which every one
+    holds :data:`MIN_MODE_SHARE` of the particles and stands :data:`SEPARATED_MODES_SD` apart
+    from its nearest; where none does (more modes than that, or none), one mode — the stricter
+    reading. Give it the coordinates that may separate modes (tempered SMC: those that remember
+    their start): in k-means every standardised coordinate counts alike, and many of one mode's
+    spread hide a split along one."""
     x = np.asarray(x, float)
     n = len(x)
     sd = x.std(axis=0)
@@ -81,8 +82,8 @@ def separated_modes(x: np.ndarray) -> np.ndarray:
 
 def within_mode_correlations(start: np.ndarray, now: np.ndarray, labels: np.ndarray) -> np.ndarray:
     """|correlation| of each coordinate between the particles' positions at ``start`` and
-    ``now``, each taken from its mode's mean (``labels``: the modes at ``start``), pooled over
-    the modes; 0 for a coordinate that does not vary within them. With one mode: the plain
+    ``now``, each taken from its mode's mean (``labels``: each particle's mode), pooled over the
+    modes; 0 for a coordinate that does not vary within them. With one mode: the plain
     correlation."""
     a = np.asarray(start, float).copy()
     b = np.asarray(now, float).copy()
@@ -93,3 +94,17 @@ def within_mode_correlations(start: np.ndarray, now: np.ndarray, labels: np.ndar
     den = np.sqrt((a**2).sum(axis=0) * (b**2).sum(axis=0))
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(den > 0, np.abs((a * b).sum(axis=0)) / den, 0.0)
+
+
+def correlations_with_start(start: np.ndarray, now: np.ndarray, decorrelation: float) -> tuple[np.ndarray, np.ndarray]:
+    """(|correlation| per coordinate, mode labels): the plain correlations of the particles'
+    positions ``now`` with ``start``; where one is above ``decorrelation`` the modes are looked
+    for among the coordinates above it, and where there are several the correlations are read
+    within them (:func:`within_mode_correlations`)."""
+    labels = np.zeros(len(now), int)
+    by_coordinate = within_mode_correlations(start, now, labels)
+    if np.max(by_coordinate, initial=0.0) > decorrelation:  # modes looked for only where it matters
+        found = separated_modes(np.asarray(now)[:, by_coordinate > decorrelation])
+        if found.max() > 0:
+            labels, by_coordinate = found, within_mode_correlations(start, now, found)
+    return by_coordinate, labels

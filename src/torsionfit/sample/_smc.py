@@ -40,7 +40,7 @@ import numpy as np
 from scipy.linalg import solve_triangular
 
 from ._emcee import SampleResult
-from ._modes import separated_modes, within_mode_correlations
+from ._modes import correlations_with_start
 from ._pareto import importance_pareto_k
 
 #: the acceptance the random walk's scale is tuned towards (Roberts, Gelman & Gilks 1997)
@@ -70,7 +70,8 @@ class SMCResult(SampleResult):
     ``log_prob`` (particles, 1). ``betas``: the tempering schedule (last 1.0 when it reached the
     posterior); per stage ``moves`` (random-walk steps), ``stage_acceptance`` and
     ``stage_correlation`` (the largest |correlation| of a coordinate with its value at the start
-    of the stage, after the moves, within the stage's separated modes: ``stage_modes``); ``approximation_pareto_k``: the Pareto k of p/q at q's draws
+    of the stage, after the moves, within the stage's separated modes: ``stage_modes``);
+    ``approximation_pareto_k``: the Pareto k of p/q at q's draws
     (how far the approximation was from the posterior); ``stage_step_size``: HMC's step size
     per stage (empty for random-walk moves)."""
 
@@ -274,12 +275,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
                 continue
             # modes the moves cannot cross keep their particles: the decorrelation is asked
             # within the modes they sit in now, whose shares the tempering's weights set
-            labels = np.zeros(n, int)
-            by_coordinate = within_mode_correlations(start, state[0], labels)
-            if np.max(by_coordinate) > decorrelation:  # the modes looked for only where it matters
-                labels = separated_modes(state[0][:, by_coordinate > decorrelation])
-                if labels.max() > 0:
-                    by_coordinate = within_mode_correlations(start, state[0], labels)
+            by_coordinate, labels = correlations_with_start(start, state[0], decorrelation)
             if np.max(by_coordinate) <= decorrelation:
                 break
         modes.append(int(labels.max()) + 1)
