@@ -33,6 +33,7 @@ from torsionfit._provenance import environment  # noqa: E402
 from torsionfit.batch import executor  # noqa: E402
 from torsionfit.io import load_campaign  # noqa: E402
 from torsionfit.report import fit_campaign, metrics_against_data  # noqa: E402
+from torsionfit.sample import _smc as smc  # noqa: E402
 
 METRICS = ("play", "stiffness_loading")
 
@@ -73,10 +74,12 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
                                 "data": (metrics[k].get("data") or {}).get("value")} for k in METRICS if k in metrics},
                 **({"pareto_k": d.get("laplace_pareto_k")} if sampler == "laplace" else
                    {k: d.get(k) for k in ("smc_betas", "smc_moves", "smc_acceptance", "smc_correlation_max",
-                                          "approximation_pareto_k", "smc_moves_kind", "smc_modes", "smc_mode_shares")}),
+                                          "approximation_pareto_k", "smc_moves_kind", "smc_modes", "smc_mode_shares",
+                                          "smc_step_size", "smc_leapfrog_steps")}),
             }
     out["departure"] = departure(draws_of["laplace"], draws_of["smc"], names)
     out["particles"], out["seed"] = particles, seed
+    out["kernel"] = kernel_settings()
     if optima_mixture:
         out["optima_mixture"] = True
     path = _row_path(output, unit)
@@ -87,6 +90,21 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
 
 #: coordinates listed per loop where the SMC particles depart most from the split normal's draws
 DEPARTURE_SHOWN = 5
+
+
+def kernel_settings() -> dict:
+    """The HMC kernel's settings a row is made with (rows without: 8 leapfrog steps of the tuned
+    step, jittered ±20 %)."""
+    return {"step_spread": smc.HMC_STEP_SPREAD, "trajectory_length": smc.HMC_TRAJECTORY_LENGTH,
+            "max_leapfrog_steps": smc.HMC_MAX_LEAPFROG_STEPS}
+
+
+def kernel_text(row: dict) -> str:
+    """The row's HMC moves in a few words: mean leapfrog steps per move over its stages."""
+    steps = row["smc"].get("smc_leapfrog_steps")
+    if row.get("kernel") is None or not steps:
+        return "8, one step"
+    return f"{np.mean(steps):.0f}, drawn steps"
 
 
 def departure(split_normal: np.ndarray, particles: np.ndarray, names: list[str]) -> list[dict]:
@@ -122,8 +140,10 @@ def markdown(rows: list[dict], particles: int, optima_mixture: bool = False) -> 
              "evidence (--optima-mixture; the 'split normal' columns are that mixture's draws)" if optima_mixture else "")
     lines = [
         f"Tempered SMC against the split normal on measured loops ({mv.SOURCE}), each fitted as the validation fits it{start} "
-        f"(`scripts/measured_smc.py`; SMC: {particles} particles, HMC moves of 8 leapfrog steps with the particles' "
-        "covariance as inverse mass matrix, at most 100 moves per stage). k: the Pareto k of "
+        f"(`scripts/measured_smc.py`; SMC: {particles} particles, HMC moves with the particles' covariance as inverse "
+        "mass matrix, at most 100 moves per stage; leapfrog steps: the mean per move, and the kernel — 'drawn steps': "
+        "each move's step the tuned one over a log-uniform factor up to 30, the trajectory π/2 of the particles' spread "
+        "long; 'one step': eight steps of the tuned one, as rows made before the drawn steps). k: the Pareto k of "
         "posterior/split normal at the split normal's draws (≤ 0.7: they stand for the posterior); stages: tempering "
         "steps from the split normal to the posterior; correlation: the largest correlation of a coordinate with its "
         "value at the start of its stage after the moves (converged only when at most 0.1 at every stage), read within "
@@ -133,8 +153,8 @@ def markdown(rows: list[dict], particles: int, optima_mixture: bool = False) -> 
         "",
         "| unit | k | split normal: play (arcmin) | SMC: play | split normal: stiffness_loading (N·m/arcmin) | "
         "SMC: stiffness_loading | data: play / stiffness_loading | off (split normal / SMC) | SMC stages | "
-        "SMC moves per stage | SMC correlation | SMC converged | seconds (split normal / SMC) |",
-        "| --- | ---: | --- | --- | --- | --- | --- | --- | ---: | --- | ---: | --- | --- |",
+        "SMC moves per stage | leapfrog steps | SMC correlation | SMC converged | seconds (split normal / SMC) |",
+        "| --- | ---: | --- | --- | --- | --- | --- | --- | ---: | --- | --- | ---: | --- | --- |",
     ]
     for r in sorted(rows, key=lambda r: r["unit"]):
         a, b = r["laplace"], r["smc"]
@@ -144,7 +164,7 @@ def markdown(rows: list[dict], particles: int, optima_mixture: bool = False) -> 
         lines.append(
             f"| {r['unit']} | {b['approximation_pareto_k']:.2f} | {_metric(a, 'play')} | {_metric(b, 'play')} | "
             f"{_metric(a, 'stiffness_loading')} | {_metric(b, 'stiffness_loading')} | {data} | {off} | "
-            f"{len(b['smc_betas'])} | {', '.join(map(str, b['smc_moves']))} | {b['smc_correlation_max']:.2f} | "
+            f"{len(b['smc_betas'])} | {', '.join(map(str, b['smc_moves']))} | {kernel_text(r)} | {b['smc_correlation_max']:.2f} | "
             f"{b['converged']} | "
             f"{a['seconds']:.0f} / {b['seconds']:.0f} |")
     lines += ["", mv.environment_text(rows, "smc.json")]

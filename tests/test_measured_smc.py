@@ -34,7 +34,7 @@ def test_the_page_sets_both_samplers_side_by_side_and_names_a_run_that_did_not_m
     text = ms.markdown([row], 1000)
     line = next(l for l in text.splitlines() if l.startswith("| split-pccf-preload2-pos5"))
     assert "| 1.80 |" in line and "0.182 (0.177–0.1878)" in line and "0.1829 (0.1824–0.1835)" in line
-    assert "| compliance_loading_neg / none |" in line and "| 3 | 100, 100, 100 | 0.62 | False |" in line
+    assert "| compliance_loading_neg / none |" in line and "| 3 | 100, 100, 100 | 8, one step | 0.62 | False |" in line
     assert "split-pccf-preload2-pos5: the particles did not forget their start" in text
     assert "Computed with Python" in text and "REAL" in text
 
@@ -80,6 +80,15 @@ def test_a_loop_whose_particles_sat_in_separated_modes_says_where_and_with_what_
     assert "2 modes, shares 0.31, 0.69" in text
     row["smc"]["smc_modes"] = [1, 1]
     assert "separated modes the moves do not cross" not in ms.markdown([row], 500)
+
+
+def test_a_row_says_which_hmc_kernel_made_it():
+    """Rows made before the drawn steps carry no kernel: 'one step'; rows made with them their
+    mean leapfrog steps per move."""
+    row = {"unit": "split-pccf-initial-pos6", "laplace": {}, "smc": {"smc_leapfrog_steps": [12.0, 30.0]}}
+    assert ms.kernel_text(row) == "8, one step"
+    row["kernel"] = ms.kernel_settings()
+    assert ms.kernel_text(row) == "21, drawn steps" and row["kernel"]["step_spread"] == 30.0
 
 
 def test_the_departure_lists_the_coordinates_the_particles_moved_most_first_in_the_split_normals_sd():

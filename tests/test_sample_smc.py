@@ -107,8 +107,8 @@ def test_hmc_moves_recover_a_posterior_the_approximation_misses(seed):
 
 
 def test_hmc_moves_leave_a_curved_ridge_invariant():
-    """The HMC kernel (the particles' covariance as inverse mass, a jittered step tuned towards
-    0.65) leaves the posterior invariant: 200 moves of exact draws of a curved ridge keep its
+    """The HMC kernel (the particles' covariance as inverse mass, a step tuned towards 0.65 and
+    drawn shorter log-uniformly, trajectories of a fixed length) leaves the posterior invariant: 200 moves of exact draws of a curved ridge keep its
     spread, its skewed mean and the ridge's coordinates within their sampling error."""
     from torsionfit.sample._smc import _Hamiltonian
 
@@ -119,7 +119,7 @@ def test_hmc_moves_leave_a_curved_ridge_invariant():
     x = np.stack([x1, 0.5 * (x1**2 - 9.0) + rng.standard_normal(n), *rng.standard_normal((2, n))], axis=1)
     start = x.copy()
     q = _narrow_start(4, sd=1.0)
-    kernel = _Hamiltonian(both, q, 4, leapfrog_steps=8)
+    kernel = _Hamiltonian(both, q, 4, leapfrog_steps=None)
     lp, gp = both(x)
     state = [x, lp, q.log_density(x), gp]
     kernel.start_stage(x, 1.0)
@@ -129,9 +129,60 @@ def test_hmc_moves_leave_a_curved_ridge_invariant():
     # most particles moved; a few far out on the ridge, where its curvature makes the tuned step
     # too long, stay put (3 % here): the tails are the ridge's slowest part
     assert np.mean(np.any(moved != start, axis=1)) > 0.9
-    # sampling error of 2000 draws: sd(x₂) ≈ 6.4 ± 0.3, mean(x₂) 0 ± 0.15
-    assert abs(moved[:, 0].std() - 3.0) < 0.2 and abs(moved[:, 1].std() - np.sqrt(1 + 2 * 4.5**2)) < 0.6
+    # sampling error of 2000 draws: sd(x₂) ≈ 6.4 ± 0.27 (the spread of 20 seeds' runs, whose mean
+    # is 6.42), mean(x₂) 0 ± 0.15; within three of them
+    assert abs(moved[:, 0].std() - 3.0) < 0.2 and abs(moved[:, 1].std() - np.sqrt(1 + 2 * 4.5**2)) < 0.8
     assert abs(moved[:, 1].mean()) < 0.45 and np.all(np.abs(moved[:, 2:].std(axis=0) - 1.0) < 0.1)
+
+
+def _funnel(dim=5, sd_v=1.5):
+    """Neal's funnel in ``dim`` dimensions: v ~ N(0, sd_v²), x_i | v ~ N(0, e^v) — one coordinate
+    setting the others' spread, as a component's size sets how well its shape is known."""
+
+    def both(x):
+        x = np.atleast_2d(x)
+        v, r = x[:, 0], x[:, 1:]
+        with np.errstate(over="ignore", invalid="ignore"):
+            lp = -0.5 * (v / sd_v) ** 2 - 0.5 * np.sum(r**2, axis=1) * np.exp(-v) - 0.5 * (dim - 1) * v
+            g = np.empty_like(x)
+            g[:, 0] = -v / sd_v**2 + 0.5 * np.sum(r**2, axis=1) * np.exp(-v) - 0.5 * (dim - 1)
+            g[:, 1:] = -r * np.exp(-v)[:, None]
+        bad = ~np.isfinite(lp) | ~np.all(np.isfinite(g), axis=1)
+        lp[bad], g[bad] = -np.inf, 0.0
+        return lp, g
+
+    return both
+
+
+def _funnel_run(seed):
+    dim = 5
+    both = _funnel(dim)
+    start = SplitNormal(mean=np.r_[1.0, np.zeros(dim - 1)], axes=np.eye(dim), sd=np.r_[0.3, np.ones(dim - 1)],
+                        scales=np.ones((dim, 2)))
+    return tempered_smc(lambda x: both(x)[0], start, np.random.default_rng(seed), 1000, log_p_and_grad=both)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_hmc_moves_reach_the_neck_of_a_funnel(seed):
+    """Where one coordinate sets the others' spread (v: its 5 % quantile −2.47, sd 1.5) the step
+    tuned over the population is too long for the particles in the neck: the moves' steps drawn
+    shorter (log-uniformly, trajectories of a fixed length) reach it."""
+    res = _funnel_run(seed)
+    v = res.chain[:, 0, 0]
+    assert res.converged, res.reason
+    assert abs(v.std() / 1.5 - 1.0) < 0.1 and abs(np.percentile(v, 5) + 2.47) < 0.25
+    assert all(1 <= s <= 64 for s in res.stage_leapfrog_steps) and "trajectories" in res.moves
+
+
+def test_with_one_tuned_step_the_moves_miss_the_funnels_neck(monkeypatch):
+    """The control: every move at the population's tuned step 'converges' by the rule and
+    leaves the neck short (sd(v) 1.27–1.35 of 1.5, its 5 % quantile −1.6 to −1.9 of −2.47)."""
+    import torsionfit.sample._smc as smc
+
+    monkeypatch.setattr(smc, "HMC_STEP_SPREAD", 1.0)
+    res = _funnel_run(0)
+    v = res.chain[:, 0, 0]
+    assert res.converged and v.std() < 1.4 and np.percentile(v, 5) > -2.2
 
 
 def test_the_split_normals_gradient_is_its_log_densitys():
@@ -144,7 +195,8 @@ def test_the_split_normals_gradient_is_its_log_densitys():
 
 
 @pytest.mark.xfail(strict=True, reason="known limit: on a strongly curved ridge the decorrelation rule passes while "
-                                       "the particles leave the ridge's far ends short (sd(x2) about 3.6 of 6.4)")
+                                       "the particles leave the ridge's far ends short (sd(x2) 4.7–6.1 of 6.4 over "
+                                       "seeds 0–5; 3.2–3.5 when every move took the tuned step)")
 def test_smc_reaches_the_far_ends_of_a_strongly_curved_ridge():
     """The decorrelation rule says the particles forgot where resampling put them, not that
     they reached every part of the posterior: from a narrow start on the curved ridge, HMC

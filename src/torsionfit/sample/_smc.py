@@ -10,9 +10,14 @@ drawn from q are carried through the densities
 each step's β chosen so that the incremental weights (p/q)^Δβ keep an effective sample size of
 ``target_ess`` of the particles; the particles are then resampled (systematic) and moved by
 Markov steps that leave π_β invariant. Given the posterior's gradient (``log_p_and_grad``) each
-move is a Hamiltonian Monte Carlo step of ``leapfrog_steps`` leapfrog steps, the mass matrix the
-inverse of the particles' covariance (so a step crosses the particles' spread along every axis
-alike) and the step size tuned towards an acceptance of 0.65 (Beskos et al. 2013). Without it
+move is a Hamiltonian Monte Carlo trajectory, the mass matrix the inverse of the particles'
+covariance (so a step crosses the particles' spread along every axis alike), the step size h
+tuned towards an acceptance of 0.65 (Beskos et al. 2013) and the trajectory's length fixed in
+those whitened units: ⌈T/h⌉ leapfrog steps for T = :data:`HMC_TRAJECTORY_LENGTH` (a quarter
+period of a Gaussian of the particles' covariance: one move draws a new position of it), at most
+:data:`HMC_MAX_LEAPFROG_STEPS`. A fixed number of steps would let the trajectory shrink with h:
+where the posterior narrows somewhere (a funnel: one coordinate setting another's spread) the
+tuned step falls and every move crept a fraction of the particles' spread. Without it
 (a posterior given as values alone) random-walk Metropolis steps with the particles' covariance
 scaled by a factor tuned towards an acceptance of 0.234, every other move an independence
 proposal from the particles' Gaussian (inflated by ``INDEPENDENT_INFLATION``): on measured loops
@@ -51,9 +56,15 @@ INDEPENDENT_INFLATION = 1.3
 
 #: the acceptance HMC's step size is tuned towards (Beskos et al. 2013: 0.651 optimal as dim → ∞)
 HMC_TARGET_ACCEPTANCE = 0.65
-#: each HMC move's step size is the tuned one times a uniform factor within ±this (no trajectory
-#: length resonates with a period of the posterior for every particle)
-HMC_STEP_JITTER = 0.2
+#: each HMC move's step size is the tuned one divided by a log-uniform factor between 1 and this:
+#: the particles where the posterior is narrower than the population's tuned step allows move on
+#: the short draws (and no one trajectory length resonates with a period of the posterior)
+HMC_STEP_SPREAD = 30.0
+#: the HMC trajectory's length in units of the particles' spread (whitened by their covariance):
+#: π/2, a quarter period of a Gaussian of that covariance
+HMC_TRAJECTORY_LENGTH = 0.5 * np.pi
+#: the most leapfrog steps (gradient evaluations) one HMC move takes
+HMC_MAX_LEAPFROG_STEPS = 64
 
 __all__ = ["SMCResult", "tempered_smc"]
 
@@ -82,6 +93,8 @@ class SMCResult(SampleResult):
     approximation_pareto_k: float = float("nan")
     #: HMC moves: each stage's step size (in the particles' scale); empty for random-walk moves
     stage_step_size: tuple = ()
+    #: HMC moves: each stage's mean leapfrog steps per move (gradient evaluations per particle)
+    stage_leapfrog_steps: tuple = ()
     #: per stage the separated modes among the particles after its moves (:mod:`._modes`): the
     #: moves do not cross between them, and ``stage_correlation`` is measured within them
     stage_modes: tuple = ()
@@ -172,16 +185,18 @@ class _RandomWalk:
 
 
 class _Hamiltonian:
-    """HMC with ``leapfrog_steps`` leapfrog steps per move, mass matrix the inverse of the
-    particles' covariance C (momentum ~ N(0, C⁻¹), velocity C·p), the step size tuned towards
-    :data:`HMC_TARGET_ACCEPTANCE` over the population. ``log_p_and_grad``: (n, dim) → ((n,),
+    """HMC, mass matrix the inverse of the particles' covariance C (momentum ~ N(0, C⁻¹),
+    velocity C·p), the step size h tuned towards :data:`HMC_TARGET_ACCEPTANCE` over the
+    population; ``leapfrog_steps`` per move, or (None) ⌈T/h⌉ for T = :data:`HMC_TRAJECTORY_LENGTH`,
+    at most :data:`HMC_MAX_LEAPFROG_STEPS`. ``log_p_and_grad``: (n, dim) → ((n,),
     (n, dim)), −inf and a zero gradient where p is zero; the approximation's gradient is
     ``approximation.grad_log_density``."""
 
-    def __init__(self, log_p_and_grad, approximation, dim: int, leapfrog_steps: int):
+    def __init__(self, log_p_and_grad, approximation, dim: int, leapfrog_steps: int | None):
         self.log_p_and_grad, self.approximation = log_p_and_grad, approximation
-        self.leapfrog_steps = int(leapfrog_steps)
+        self.leapfrog_steps = None if leapfrog_steps is None else int(leapfrog_steps)
         self.step = 1.0 / dim ** 0.25
+        self.steps_taken = []  # leapfrog steps of each move (gradient evaluations per particle)
 
     def start_stage(self, x, beta):
         self.beta = beta
@@ -202,15 +217,20 @@ class _Hamiltonian:
         n, dim = x.shape
         # momentum ~ N(0, C⁻¹): L⁻ᵀ ξ with C = L Lᵀ
         p0 = solve_triangular(self.chol, rng.standard_normal((dim, n)), lower=True, trans="T").T
-        h = self.step * rng.uniform(1.0 - HMC_STEP_JITTER, 1.0 + HMC_STEP_JITTER)
+        # the move's step: the tuned one divided by a log-uniform factor up to HMC_STEP_SPREAD. Where
+        # the posterior narrows (a funnel's neck, a ridge's curved ends) the tuned step, set by the
+        # population's acceptance, is too long for the particles there: the shorter draws move them
+        h = self.step * HMC_STEP_SPREAD ** -rng.uniform(0.0, 1.0)
+        steps = self.leapfrog_steps or int(np.clip(np.ceil(HMC_TRAJECTORY_LENGTH / h), 1, HMC_MAX_LEAPFROG_STEPS))
+        self.steps_taken.append(steps)
         xn, pn = x.copy(), p0 + 0.5 * h * self._grad(gp, x)
         off = np.zeros(n, bool)  # trajectories that left the support: stopped there, then rejected
-        for j in range(self.leapfrog_steps):
+        for j in range(steps):
             xn = xn + h * pn @ self.cov
             lpn, gpn = self.log_p_and_grad(xn)
             lpn, gpn = np.asarray(lpn, float), np.asarray(gpn, float)
             off |= ~np.isfinite(lpn)
-            pn = pn + (h if j < self.leapfrog_steps - 1 else 0.5 * h) * self._grad(gpn, xn)
+            pn = pn + (h if j < steps - 1 else 0.5 * h) * self._grad(gpn, xn)
             pn[off] = 0.0
         lqn = np.asarray(self.approximation.log_density(xn), float)
         h0 = _tempered(self.beta, lp, lq) - 0.5 * np.sum((p0 @ self.cov) * p0, axis=1)
@@ -223,7 +243,7 @@ class _Hamiltonian:
 
 
 def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: int = 1000, *,
-                 log_p_and_grad=None, leapfrog_steps: int = 8,
+                 log_p_and_grad=None, leapfrog_steps: int | None = None,
                  target_ess: float = 0.5, min_moves: int = 5, max_moves: int = 100,
                  decorrelation: float = 0.1, max_stages: int = 200, names=(), seed: int | None = None,
                  progress=None) -> SMCResult:
@@ -231,7 +251,8 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
     zero) by tempering from ``approximation`` (``draw(rng, n)``, ``log_density(x)``, and
     ``grad_log_density(x)`` for HMC moves); see the module docstring. ``log_p_and_grad``: the
     posterior's log density and gradient ((n, dim) → ((n,), (n, dim)), −inf and a zero gradient
-    where it is zero): the moves are then HMC of ``leapfrog_steps``, else random-walk
+    where it is zero): the moves are then HMC (``leapfrog_steps`` per move, None: a trajectory
+    of fixed length in the particles' spread, see the module docstring), else random-walk
     Metropolis. ``progress``: called with one line per stage."""
     names = tuple(names)
     min_moves = max(1, min(min_moves, max_moves))
@@ -247,7 +268,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         lp, gp = (np.asarray(a, float) for a in log_p_and_grad(x))
         state = [x, lp, lq, gp]
     k_q = importance_pareto_k(lp, lq)
-    beta, betas, moves, accept, corr, slowest, steps, modes = 0.0, [], [], [], [], [], [], []
+    beta, betas, moves, accept, corr, slowest, steps, modes, trajectory = 0.0, [], [], [], [], [], [], [], []
     reason = ""
     while beta < 1.0:
         if len(betas) >= max_stages:
@@ -265,6 +286,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         beta = new_beta
         betas.append(beta)
         kernel.start_stage(state[0], beta)
+        taken = len(getattr(kernel, "steps_taken", ()))
         start = state[0].copy()
         rates = []
         for m in range(1, max_moves + 1):
@@ -285,6 +307,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         slowest.append(int(np.argmax(by_coordinate)))
         if isinstance(kernel, _Hamiltonian):
             steps.append(float(kernel.step))
+            trajectory.append(float(np.mean(kernel.steps_taken[taken:])))
         if progress is not None:
             progress(f"[smc] stage {len(betas)}: β = {beta:.4f}, {m} moves, acceptance {accept[-1]:.2f}, "
                      f"correlation with the stage's start {corr[-1]:.2f}" + (f" within {modes[-1]} modes" if modes[-1] > 1 else ""))
@@ -296,7 +319,11 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         reason = (f"the particles did not forget their start within {max_moves} moves at stage(s) "
                   f"{', '.join(map(str, stuck))} (largest correlation {max(corr):.2f} > {decorrelation}, of {who})")
     converged = not reason
-    how = (f"HMC moves of {leapfrog_steps} leapfrog steps with the particles' covariance as inverse mass matrix"
+    length = (f"{leapfrog_steps} leapfrog steps" if leapfrog_steps else
+              f"trajectories {HMC_TRAJECTORY_LENGTH:.2f} of the particles' spread long (at most {HMC_MAX_LEAPFROG_STEPS} "
+              "leapfrog steps)")
+    how = (f"HMC moves of {length}, each move's step the tuned one over a log-uniform factor up to "
+           f"{HMC_STEP_SPREAD:g}, with the particles' covariance as inverse mass matrix"
            if log_p_and_grad is not None else
            "random-walk Metropolis moves with the particles' covariance alternating with independence proposals "
            "from their Gaussian")
@@ -306,5 +333,6 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         reason=reason, names=names, seed=seed,
         moves=f"tempered SMC from the split normal: {n} particles, {len(betas)} stages, {how}",
         betas=tuple(betas), stage_moves=tuple(moves), stage_acceptance=tuple(accept), stage_correlation=tuple(corr),
-        approximation_pareto_k=float(k_q), stage_step_size=tuple(steps), stage_modes=tuple(modes),
+        approximation_pareto_k=float(k_q), stage_step_size=tuple(steps), stage_leapfrog_steps=tuple(trajectory),
+        stage_modes=tuple(modes),
         mode_shares=tuple(float(s) for s in np.bincount(labels) / n) if betas else ())
