@@ -18,6 +18,7 @@ import argparse
 import dataclasses
 import functools
 import json
+import logging
 import sys
 import tempfile
 import time
@@ -43,7 +44,7 @@ def _row_path(output: Path, unit: str) -> Path:
 
 
 def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | None = None,
-              optima_mixture: bool = False) -> dict:
+              optima_mixture: bool = False, progress: bool = False) -> dict:
     """Fit one loop both ways and write its row at once (a run stopped part-way keeps its done loops).
     ``optima_mixture``: both start from the mixture over the optima (FitOptions.optima_mixture)."""
     args = mv.parse_args(["--units", unit, "-o", "unused", *(["--optima-mixture"] if optima_mixture else [])])
@@ -55,7 +56,10 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
     with torsionfit.float64(), tempfile.TemporaryDirectory() as folder:
         train = load_campaign(mv.manifest(unit, [r for r in ramps if r < last], Path(folder), None))
         for sampler in ("laplace", "smc"):
-            options = dataclasses.replace(mv.fit_options(args, unit), sampler=sampler, smc_particles=particles)
+            options = dataclasses.replace(mv.fit_options(args, unit), sampler=sampler, smc_particles=particles,
+                                          progress=progress)
+            if progress:  # the fit's progress lines (the SMC stages) on stderr, named by the loop
+                logging.basicConfig(level=logging.INFO, stream=sys.stderr, format=f"{unit}: %(message)s")
             t0 = time.perf_counter()
             fit = fit_campaign(train, options, seed=seed)
             seconds = time.perf_counter() - t0
@@ -203,6 +207,7 @@ def main(argv=None) -> int:
     p.add_argument("--optima-mixture", action="store_true",
                    help="start both from the mixture of split normals over the optima the MAP starts reached "
                         "(FitOptions.optima_mixture)")
+    p.add_argument("--progress", action="store_true", help="print the fits' progress (the SMC stages) on stderr")
     p.add_argument("--force", action="store_true",
                    help="refit loops whose row a previous run with the same settings wrote (default: reuse it)")
     args = p.parse_args(argv)
@@ -218,7 +223,8 @@ def main(argv=None) -> int:
     with executor(workers=args.jobs) as run_map:
         fitted = dict(zip(todo, run_map(functools.partial(_fit_both, particles=args.particles, seed=args.seed,
                                                             output=args.output, draws=args.save_draws,
-                                                            optima_mixture=args.optima_mixture), todo)))
+                                                            optima_mixture=args.optima_mixture,
+                                                            progress=args.progress), todo)))
     rows = [done[u] or fitted[u] for u in args.units]
     (args.output / "smc.json").write_text(json.dumps({"source": mv.SOURCE, "particles": args.particles, "units": rows},
                                                      indent=1, default=float))

@@ -463,6 +463,7 @@ def test_smc_sampler_draws_the_posterior_and_reports_its_schedule(noisy_bench):
     assert len(d["smc_moves"]) == len(d["smc_betas"]) and d["smc_correlation_max"] <= 0.1
     assert len(d["smc_modes"]) == len(d["smc_betas"]) and sum(d["smc_mode_shares"]) == pytest.approx(1.0)
     assert len(d["smc_leapfrog_steps"]) == len(d["smc_betas"]) and all(1 <= s <= 64 for s in d["smc_leapfrog_steps"])
+    assert 0.0 < d["smc_correlation_floor"] < 0.2
     assert fit.draws_u.shape[0] == 200
     # the Laplace approximation holds on the model's own bench: the same spread within a third
     cov_sd = np.sqrt(np.diag(fit.map_result.cov))

@@ -185,6 +185,34 @@ def test_with_one_tuned_step_the_moves_miss_the_funnels_neck(monkeypatch):
     assert res.converged and v.std() < 1.4 and np.percentile(v, 5) > -2.2
 
 
+@pytest.mark.parametrize("n, dim", [(500, 31), (200, 10)])
+def test_the_correlation_floor_is_that_of_positions_independent_of_the_start(n, dim):
+    """The decorrelation check's noise: the largest |correlation| over ``dim`` coordinates of
+    positions independent of the start, at one check in two (and in ten), as simulated."""
+    from torsionfit.sample._smc import correlation_floor, particles_resolving
+
+    rng = np.random.default_rng(0)
+    a, b = rng.standard_normal((2, 400, n, dim))
+    largest = np.array([np.abs(np.corrcoef(x, y, rowvar=False)[:dim, dim:].diagonal()).max() for x, y in zip(a, b)])
+    assert np.median(largest) == pytest.approx(correlation_floor(n, dim), rel=0.05)
+    assert abs(np.mean(largest > correlation_floor(n, dim, 0.9)) - 0.1) < 0.04
+    assert correlation_floor(particles_resolving(0.1, dim), dim, 0.9) <= 0.1 < correlation_floor(
+        particles_resolving(0.1, dim) - 20, dim, 0.9)
+
+
+def test_a_stall_within_the_checks_noise_says_the_particles_are_too_few():
+    """60 particles in 12 coordinates: particles that forgot their start show a largest
+    correlation of about 0.25 (a check passes a 0.1 rule about once in a thousand), so the rule
+    is not met, and the reason says why."""
+    dim = 12
+    both = _target_and_grad(np.zeros(dim), np.eye(dim))
+    lines = []
+    res = tempered_smc(lambda x: both(x)[0], _narrow_start(dim, sd=0.8), np.random.default_rng(0), 60,
+                       log_p_and_grad=both, max_moves=30, progress=lines.append)
+    assert not res.converged and "60 particles cannot resolve it" in res.reason and "particles resolve 0.1" in res.reason
+    assert res.correlation_floor == pytest.approx(0.25, abs=0.01) and "cannot resolve a correlation of 0.1" in lines[0]
+
+
 def test_the_split_normals_gradient_is_its_log_densitys():
     q = SplitNormal(mean=np.array([0.5, -1.0]), axes=np.array([[0.6, -0.8], [0.8, 0.6]]), sd=np.array([1.0, 2.0]),
                     scales=np.array([[0.5, 1.5], [2.0, 0.7]]))

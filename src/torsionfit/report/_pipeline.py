@@ -450,6 +450,7 @@ def _sampler_diagnostics(sample_result, used: str, conv: dict, chain: np.ndarray
             "smc_correlation_max": float(max(sample_result.stage_correlation, default=0.0)),
             "smc_step_size": [float(h) for h in sample_result.stage_step_size],
             "smc_leapfrog_steps": [float(s) for s in sample_result.stage_leapfrog_steps],
+            "smc_correlation_floor": float(sample_result.correlation_floor),
             "smc_modes": [int(k) for k in sample_result.stage_modes],
             "smc_mode_shares": [float(s) for s in sample_result.mode_shares],
             "smc_moves_kind": sample_result.moves,
