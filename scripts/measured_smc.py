@@ -53,13 +53,13 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
     last = mv.held_ramp(ramps, 1)
     out = {"unit": unit, "environment": environment()}
     draws_of, names = {}, []
+    if progress:  # the fits' progress lines (the SMC stages) on stderr, named by this loop
+        logging.basicConfig(level=logging.INFO, stream=sys.stderr, format=f"{unit}: %(message)s", force=True)
     with torsionfit.float64(), tempfile.TemporaryDirectory() as folder:
         train = load_campaign(mv.manifest(unit, [r for r in ramps if r < last], Path(folder), None))
         for sampler in ("laplace", "smc"):
             options = dataclasses.replace(mv.fit_options(args, unit), sampler=sampler, smc_particles=particles,
                                           progress=progress)
-            if progress:  # the fit's progress lines (the SMC stages) on stderr, named by the loop
-                logging.basicConfig(level=logging.INFO, stream=sys.stderr, format=f"{unit}: %(message)s")
             t0 = time.perf_counter()
             fit = fit_campaign(train, options, seed=seed)
             seconds = time.perf_counter() - t0

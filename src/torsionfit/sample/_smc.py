@@ -15,9 +15,10 @@ covariance (so a step crosses the particles' spread along every axis alike), the
 tuned towards an acceptance of 0.65 (Beskos et al. 2013) and the trajectory's length fixed in
 those whitened units: ⌈T/h⌉ leapfrog steps for T = :data:`HMC_TRAJECTORY_LENGTH` (a quarter
 period of a Gaussian of the particles' covariance: one move draws a new position of it), at most
-:data:`HMC_MAX_LEAPFROG_STEPS`. A fixed number of steps would let the trajectory shrink with h:
-where the posterior narrows somewhere (a funnel: one coordinate setting another's spread) the
-tuned step falls and every move crept a fraction of the particles' spread. Without it
+:data:`HMC_MAX_LEAPFROG_STEPS`; each move's step is h divided by a log-uniform factor up to
+:data:`HMC_STEP_SPREAD`. Where the posterior narrows somewhere (a funnel: one coordinate setting
+another's spread) the step tuned over the population is too long for the particles there, and
+with one step they stayed put while the rest mixed. Without it
 (a posterior given as values alone) random-walk Metropolis steps with the particles' covariance
 scaled by a factor tuned towards an acceptance of 0.234, every other move an independence
 proposal from the particles' Gaussian (inflated by ``INDEPENDENT_INFLATION``): on measured loops
@@ -118,13 +119,18 @@ def correlation_floor(n_particles: int, dim: int, probability: float = 0.5) -> f
     passes a 0.1 rule at about half the checks, and with 200 particles at almost none."""
     if n_particles < 3 or dim < 1:
         return float("nan")
-    return float(norm.ppf(0.5 + 0.5 * probability ** (1.0 / dim)) / np.sqrt(n_particles - 1))
+    return _largest_z(dim, probability) / float(np.sqrt(n_particles - 1))
+
+
+def _largest_z(dim: int, probability: float) -> float:
+    """The |Z| the largest of ``dim`` independent standard normals stays within with ``probability``."""
+    return float(norm.ppf(0.5 + 0.5 * probability ** (1.0 / dim)))
 
 
 def particles_resolving(decorrelation: float, dim: int, probability: float = 0.9) -> int:
     """The fewest particles for which independent positions stay within ``decorrelation`` over
     ``dim`` coordinates with ``probability`` (the inverse of :func:`correlation_floor`)."""
-    return int(np.ceil((norm.ppf(0.5 + 0.5 * probability ** (1.0 / dim)) / decorrelation) ** 2 + 1))
+    return int(np.ceil((_largest_z(dim, probability) / decorrelation) ** 2 + 1))
 
 
 def _incremental_weights(log_ratio: np.ndarray, delta: float) -> np.ndarray:
@@ -291,9 +297,10 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         lp, gp = (np.asarray(a, float) for a in log_p_and_grad(x))
         state = [x, lp, lq, gp]
     k_q = importance_pareto_k(lp, lq)
-    if progress is not None and correlation_floor(n, dim) > decorrelation:
+    floor, floor_90 = correlation_floor(n, dim), correlation_floor(n, dim, 0.9)
+    if progress is not None and floor > decorrelation:
         progress(f"[smc] {n} particles in {dim} coordinates cannot resolve a correlation of {decorrelation} with the "
-                 f"start (particles that forgot it show {correlation_floor(n, dim):.2f} at one check in two; "
+                 f"start (particles that forgot it show {floor:.2f} at one check in two; "
                  f"about {particles_resolving(decorrelation, dim)} resolve it)")
     beta, betas, moves, accept, corr, slowest, steps, modes, trajectory = 0.0, [], [], [], [], [], [], [], []
     reason = ""
@@ -345,10 +352,10 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         who = names[worst] if worst < len(names) else f"u[{worst}]"
         reason = (f"the particles did not forget their start within {max_moves} moves at stage(s) "
                   f"{', '.join(map(str, stuck))} (largest correlation {max(corr):.2f} > {decorrelation}, of {who})")
-        if max(corr) <= correlation_floor(n, dim, 0.9):
+        if max(corr) <= floor_90:
             # the stall is within the check's noise: it cannot tell these particles from ones that forgot
             reason += (f"; {n} particles cannot resolve it: over {dim} coordinates particles that forgot their start "
-                       f"show a largest correlation above {correlation_floor(n, dim, 0.9):.2f} at one check in ten "
+                       f"show a largest correlation above {floor_90:.2f} at one check in ten "
                        f"(about {particles_resolving(decorrelation, dim)} particles resolve {decorrelation})")
     converged = not reason
     length = (f"{leapfrog_steps} leapfrog steps" if leapfrog_steps else
@@ -368,4 +375,4 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         approximation_pareto_k=float(k_q), stage_step_size=tuple(steps), stage_leapfrog_steps=tuple(trajectory),
         stage_modes=tuple(modes),
         mode_shares=tuple(float(s) for s in np.bincount(labels) / n) if betas else (),
-        correlation_floor=correlation_floor(n, dim))
+        correlation_floor=floor)
