@@ -43,6 +43,19 @@ def _row_path(output: Path, unit: str) -> Path:
     return output / "units" / f"{unit}.json"
 
 
+def _progress_lines(unit: str) -> None:
+    """torsionfit's progress lines (the SMC stages) on stderr, named by this loop. Its own logger
+    alone, as the CLI does: the root logger at INFO also prints other libraries' INFO lines (an
+    array-shape note of arviz's per metric, jax's backend search)."""
+    logger = logging.getLogger("torsionfit")
+    for handler in list(logger.handlers):
+        logger.removeHandler(handler)
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter(f"{unit}: %(message)s"))
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+
+
 def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | None = None,
               optima_mixture: bool = False, progress: bool = False) -> dict:
     """Fit one loop both ways and write its row at once (a run stopped part-way keeps its done loops).
@@ -53,8 +66,8 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
     last = mv.held_ramp(ramps, 1)
     out = {"unit": unit, "environment": environment()}
     draws_of, names = {}, []
-    if progress:  # the fits' progress lines (the SMC stages) on stderr, named by this loop
-        logging.basicConfig(level=logging.INFO, stream=sys.stderr, format=f"{unit}: %(message)s", force=True)
+    if progress:
+        _progress_lines(unit)
     with torsionfit.float64(), tempfile.TemporaryDirectory() as folder:
         train = load_campaign(mv.manifest(unit, [r for r in ramps if r < last], Path(folder), None))
         for sampler in ("laplace", "smc"):

@@ -104,3 +104,21 @@ def test_the_departure_lists_the_coordinates_the_particles_moved_most_first_in_t
                          smc_acceptance=[0.6], smc_correlation_max=0.05, approximation_pareto_k=1.0)}
     assert "where the particles depart most from the split normal" in ms.markdown([row], 500)
     assert f"gap_hold_torque {rows[0]['shift_sd']:+.1f} sd" in ms.markdown([row], 500)
+
+
+def test_progress_lines_are_torsionfits_own_named_by_the_loop_and_leave_other_libraries_quiet(capsys):
+    import logging
+
+    before = logging.getLogger("torsionfit"), logging.getLogger().level
+    try:
+        ms._progress_lines("loop-a")
+        ms._progress_lines("loop-b")  # a second loop in the same process replaces the first's name
+        logging.getLogger("torsionfit.sample._smc").info("stage 1")
+        logging.getLogger("arviz_stats.base.stats_utils").info("Shape validation failed")
+        err = capsys.readouterr().err
+        assert err.splitlines() == ["loop-b: stage 1"]
+    finally:
+        logger = before[0]
+        for handler in list(logger.handlers):
+            logger.removeHandler(handler)
+        logger.setLevel(logging.NOTSET)
