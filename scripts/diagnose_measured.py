@@ -6,6 +6,11 @@ the README quotes) and OUT/measured-trail.json.
     .venv/bin/python scripts/diagnose_measured.py -o docs/diagnose            # the README's three loops
     .venv/bin/python scripts/diagnose_measured.py -o out/diagnose --all --jobs 2  # all 21 loops
     .venv/bin/python scripts/diagnose_measured.py --refit-each --units U ...  # what each effect earns alone
+    .venv/bin/python scripts/diagnose_measured.py -o docs/diagnose/all-loops --no-backward --append --units U ...
+
+The table and its JSON are written again as each unit finishes, so a run stopped part way keeps
+the units it finished. ``--append`` re-runs the units named and keeps the other units' rows of
+the table already in OUT (each unit's entry records the settings it was run with).
 """
 
 import argparse
@@ -17,6 +22,7 @@ from pathlib import Path
 
 import jax
 
+from torsionfit._cache import enable_compilation_cache
 from torsionfit.batch import executor
 from torsionfit.diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
 from torsionfit.fit import NoiseOptions
@@ -97,10 +103,80 @@ def diagnose_unit(unit: str, args) -> tuple[list[str], dict, str]:
     entry["steps"] = [{k: s[k] for k in ("effect", "rmse_before", "rmse_after", "delta_elpd", "delta_elpd_se")} for s in doc["steps"]]
     entry["dropped"] = [r["effect"] for r in doc["removals"] if r["dropped"]]
     entry["seconds"] = seconds
+    entry["settings"] = run_settings(args)
+    entry["rows"] = trail_rows(unit, doc, seconds)
     # each loop compiles its own programs (its lengths): kept across 21 loops they exhausted
     # the compiler's memory at the 13th
     jax.clear_caches()
-    return trail_rows(unit, doc, seconds), entry, summary_text(doc)
+    return entry["rows"], entry, summary_text(doc)
+
+
+#: the options that decide a trail (recorded with each unit's entry)
+SETTINGS = ("decimate", "seed", "ar1", "student_t", "candidates_per_step", "max_candidates_first_step",
+            "max_candidates_per_step", "least_squares_signatures", "no_backward", "no_swap")
+
+
+def run_settings(args) -> dict:
+    """The options of this run that decide a unit's trail."""
+    return {k: getattr(args, k) for k in SETTINGS}
+
+
+def rows_by_unit(table_md: str) -> dict[str, list[str]]:
+    """The trail rows of each unit in a measured-trail.md table: a unit's first row names it,
+    its further rows have an empty first cell."""
+    out, unit = {}, None
+    for line in table_md.splitlines():
+        if not line.startswith("| ") or line.startswith("| unit |") or line.startswith("| ---"):
+            continue
+        first = line.split("|")[1].strip()
+        unit = first or unit
+        if unit is not None:
+            out.setdefault(unit, []).append(line)
+    return out
+
+
+def kept_units(output: Path, rerun: list[str]) -> tuple[dict, dict]:
+    """(entries, rows) of the units of the table already in ``output`` that are not re-run;
+    entries written before the rows were recorded with them take theirs from the table."""
+    json_path, md_path = output / "measured-trail.json", output / "measured-trail.md"
+    if not json_path.is_file():
+        return {}, {}
+    entries = {u: e for u, e in json.loads(json_path.read_text()).items() if u not in rerun}
+    table = rows_by_unit(md_path.read_text()) if md_path.is_file() else {}
+    rows = {}
+    for unit, entry in entries.items():
+        rows[unit] = entry.get("rows") or table.get(unit)
+        if not rows[unit]:
+            raise SystemExit(f"{json_path}: unit {unit} has no trail rows in it or in {md_path.name}; re-run it")
+    return entries, rows
+
+
+def header(args) -> list[str]:
+    """The table's caption and head under this run's settings."""
+    return [
+        "Closing the loop on measured loops (REAL data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0; "
+        f"block means of {args.decimate} samples; rated torque 20 N·m assumed; {NOISE_TEXT[args.ar1]}"
+        + (f", Student-t with ν = {args.student_t:g}" if args.student_t else "")
+        + (", least-squares signatures" if args.least_squares_signatures else ", robust signatures")
+        + (", no backward checks (`--no-backward`)" if args.no_backward else ", backward checks: each kept effect but the "
+           "last refitted out of the final model, a redundant one dropped")
+        + ("" if args.no_backward else ", no swaps (`--no-swap`)" if args.no_swap else ", swaps at the limit of effects")
+        + "), "
+        f"`scripts/diagnose_measured.py`, seed {args.seed}.",
+        "",
+        "| unit | step | log10 p of the signature | RMSE (arcsec) | max \\|residual\\| (arcsec) | ΔELPD ± SE | wall (s) |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: |",
+    ]
+
+
+def write_table(args, entries: dict, rows: dict) -> str:
+    """Write OUT/measured-trail.md and .json with the units in name order; returns the table."""
+    order = sorted(entries)
+    text = "\n".join(header(args) + [r for u in order for r in rows[u]])
+    args.output.mkdir(parents=True, exist_ok=True)
+    (args.output / "measured-trail.md").write_text(text + "\n")
+    (args.output / "measured-trail.json").write_text(json.dumps({u: entries[u] for u in order}, indent=2))
+    return text
 
 
 def main(argv=None) -> int:
@@ -135,6 +211,8 @@ def main(argv=None) -> int:
     parser.add_argument("--no-swap", action="store_true",
                         help="no swaps (default: a trail at its limit of effects with a signature left refits its "
                              "weakest effect out and the candidate in its place, kept when it earns its keep)")
+    parser.add_argument("--append", action="store_true",
+                        help="re-run the units named and keep the other units' rows of the table already in --output")
     parser.add_argument("--refit-each", action="store_true",
                         help="no trail: refit the base model plus each effect of the unit's validation model alone, "
                              "whatever its signature, and print the ΔELPD each earns (what the keep rule sees)")
@@ -145,33 +223,15 @@ def main(argv=None) -> int:
     units = sorted(p.stem for p in MANIFESTS.glob("*.toml")) if args.all else args.units
     if args.refit_each:
         return refit_each(units, args)
-    rows, docs = [], {}
+    entries, rows = kept_units(args.output, units) if args.append else ({}, {})
+    enable_compilation_cache()  # TORSIONFIT_CACHE_DIR chooses the folder, =off switches it off
+    text = ""
     # units in processes of their own (one JAX runtime and one XLA thread each, pinned to a CPU)
     with executor(workers=args.jobs) as run_map:
-        results = run_map(functools.partial(diagnose_unit, args=args), units)
-        for unit, (unit_rows, entry, summary) in zip(units, results):
+        for unit, (unit_rows, entry, summary) in zip(units, run_map(functools.partial(diagnose_unit, args=args), units)):
             print(summary, file=sys.stderr)
-            rows += unit_rows
-            docs[unit] = entry
-    lines = [
-        "Closing the loop on measured loops (REAL data: JelmerV/Anti-Backlash-Cycloidal-Actuator, CC BY-SA 4.0; "
-        f"block means of {args.decimate} samples; rated torque 20 N·m assumed; {NOISE_TEXT[args.ar1]}"
-        + (f", Student-t with ν = {args.student_t:g}" if args.student_t else "")
-        + (", least-squares signatures" if args.least_squares_signatures else ", robust signatures")
-        + (", no backward checks (`--no-backward`)" if args.no_backward else ", backward checks: each kept effect but the "
-           "last refitted out of the final model, a redundant one dropped")
-        + ("" if args.no_backward else ", no swaps (`--no-swap`)" if args.no_swap else ", swaps at the limit of effects")
-        + "), "
-        f"`scripts/diagnose_measured.py`, seed {args.seed}.",
-        "",
-        "| unit | step | log10 p of the signature | RMSE (arcsec) | max \\|residual\\| (arcsec) | ΔELPD ± SE | wall (s) |",
-        "| --- | --- | ---: | ---: | ---: | ---: | ---: |",
-        *rows,
-    ]
-    text = "\n".join(lines)
-    args.output.mkdir(parents=True, exist_ok=True)
-    (args.output / "measured-trail.md").write_text(text + "\n")
-    (args.output / "measured-trail.json").write_text(json.dumps(docs, indent=2))
+            entries[unit], rows[unit] = entry, unit_rows
+            text = write_table(args, entries, rows)  # a run stopped part way keeps the units it finished
     print(text)
     return 0
 
