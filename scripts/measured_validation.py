@@ -316,6 +316,7 @@ def fit_options(args, unit: str | None = None) -> FitOptions:
                       laplace_shape=args.laplace_shape,
                       max_steps=args.max_steps, n_starts=args.starts, misfit_inflation=not args.no_misfit_inflation,
                       hop_to_the_hold=getattr(args, "hop_to_the_hold", False),
+                      gap_prior_from_crossings=getattr(args, "gap_prior_from_crossings", False),
                       optima_mixture=getattr(args, "optima_mixture", False),
                       noise=NoiseOptions(ar1=None if args.ar1 else False, cycle_amplitude_noise=args.cycle_noise,
                                          student_t_dof=getattr(args, "student_t", None),
@@ -833,14 +834,17 @@ def environment_text(rows: list[dict], record: str = "validation.json") -> str:
 
 
 def markdown(rows: list[dict], decimate: int, sampler: str, effects: dict, noise: str, laplace_shape: str = "gaussian",
-             hop: bool = False, hold_out_ramp: int = 1, optima_mixture: bool = False) -> str:
+             hop: bool = False, hold_out_ramp: int = 1, optima_mixture: bool = False,
+             gap_prior_from_crossings: bool = False) -> str:
     rows = sorted(rows, key=lambda r: r["unit"])  # the table in unit order, whatever order they were fitted in
     held = held_text(hold_out_ramp)
     split = ("without its last large ramp" if hold_out_ramp == 1 else
              f"up to {held} (the ramps after it are neither fitted nor scored)")
     lines = [
         f"Measured loops ({SOURCE}). Model: {model_text(rows, effects)}, "
-        + ("the MAP hopped to the hold mode where that is higher (--hop-to-the-hold), " if hop else "") +
+        + ("the MAP hopped to the hold mode where that is higher (--hop-to-the-hold), " if hop else "")
+        + ("the hold torque and the gap's crossing width with priors on the data's gap crossings (--gap-prior-from-crossings), "
+           if gap_prior_from_crossings else "") +
         f"{noise_text(noise)}, posterior by {posterior_text(sampler, laplace_shape, optima_mixture)}, fitted to each file {split} (block means of {decimate} samples). "
         f"RMSE in arcsec on those block means, the model's and the reference's alike; held-out = {held} predicted from the file before it "
         "(posterior mean of the draws' predictions; (MAP): the prediction of the MAP alone); "
@@ -1048,6 +1052,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                              "their Laplace evidence (FitOptions.optima_mixture)")
     parser.add_argument("--hop-to-the-hold", action="store_true",
                         help="one more MAP run from the hold mode the cycles' readings point at (FitOptions.hop_to_the_hold)")
+    parser.add_argument("--gap-prior-from-crossings", action="store_true",
+                        help="the held gap's hold torque and the gap's crossing width centred on the data's gap "
+                             "crossings (FitOptions.gap_prior_from_crossings)")
     parser.add_argument("--align-play-crossings", action="store_true",
                         help="diagnostic: the play ramps' torque (test_nr < 100) moved by the data's large-ramp gap-crossing "
                              "centre minus the play ramps' (in memory only), so one gap centre can place both")
@@ -1098,7 +1105,7 @@ def _main(args) -> int:
         # written before the noise / the Laplace shape were recorded: AR(1) / the Gaussian
         text = markdown(doc["units"], doc.get("decimate", args.decimate), doc.get("sampler", args.sampler), doc.get("effects", args.effects or EFFECTS),
                         doc.get("noise", "ar1"), doc.get("laplace_shape", "gaussian"), doc.get("hop_to_the_hold", False),
-                        doc.get("hold_out_ramp", 1), doc.get("optima_mixture", False))
+                        doc.get("hold_out_ramp", 1), doc.get("optima_mixture", False), doc.get("gap_prior_from_crossings", False))
         (args.output / "validation.md").write_text(text + "\n")
         print(text)
         return 0
@@ -1121,7 +1128,7 @@ def _main(args) -> int:
         # each row is written as it comes (in order), so a run cut short keeps what it has done
         rows = _write_rows(args, units, results, kept)
     text = markdown(rows, args.decimate, args.sampler, args.effects or EFFECTS, _noise(args), args.laplace_shape, args.hop_to_the_hold,
-                    args.hold_out_ramp, args.optima_mixture)
+                    args.hold_out_ramp, args.optima_mixture, args.gap_prior_from_crossings)
     (args.output / "validation.md").write_text(text + "\n")
     print(text)
     return 0
@@ -1136,9 +1143,10 @@ def _kept_rows(args, units) -> list[dict]:
     doc = json.loads(path.read_text())
     settings = {"decimate": args.decimate, "sampler": args.sampler, "noise": _noise(args), "laplace_shape": args.laplace_shape,
                 "hop_to_the_hold": args.hop_to_the_hold, "align_play_crossings": args.align_play_crossings,
-                "optima_mixture": args.optima_mixture,
+                "optima_mixture": args.optima_mixture, "gap_prior_from_crossings": args.gap_prior_from_crossings,
                 "hold_out_ramp": args.hold_out_ramp}
-    recorded = {"hop_to_the_hold": False, "align_play_crossings": False, "optima_mixture": False, "hold_out_ramp": 1, **doc}  # written only when on
+    recorded = {"hop_to_the_hold": False, "align_play_crossings": False, "optima_mixture": False,
+                "gap_prior_from_crossings": False, "hold_out_ramp": 1, **doc}  # written only when on
     for key, value in settings.items():
         if recorded.get(key) != value:
             raise SystemExit(f"--append: {path} was written with {key} = {recorded.get(key)!r}, this run has {value!r}")
@@ -1160,6 +1168,7 @@ def _write_rows(args, units, results, kept: list[dict]) -> list[dict]:
                                                                        **({"hold_out_ramp": args.hold_out_ramp} if args.hold_out_ramp != 1 else {}),
                                                                        **({"hop_to_the_hold": True} if args.hop_to_the_hold else {}),
                                                                        **({"optima_mixture": True} if args.optima_mixture else {}),
+                                                                       **({"gap_prior_from_crossings": True} if args.gap_prior_from_crossings else {}),
                                                                        **({"align_play_crossings": True} if args.align_play_crossings else {}),
                                                                        "units": rows},
                                                                       indent=1, default=float))

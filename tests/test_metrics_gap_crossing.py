@@ -67,3 +67,24 @@ def test_the_gap_centre_prior_sits_on_the_data_crossings():
     assert abs(mean - 0.8) < 0.5 and sd == pytest.approx(0.025 * 40.0, rel=0.05)
     plain = Campaign(reducer, Instrument(), (_loop(0.8, gap_rad=0.0, seed=7),))
     assert build_priors(param, plain)["gap_centre_torque"] == (0.0, 0.05 * 40.0)
+
+
+@pytest.mark.parametrize("seed, hold, friction", [(11, 1.0, 1.5), (12, 4.0, 1.0), (13, 0.5, 2.0)])
+def test_the_hold_prior_sits_on_the_crossings_less_the_friction(seed, hold, friction):
+    """gap_from_crossings: the crossings sit at ±(hold + friction); the hold torque's prior
+    holds the truth within two sds and puts the crossings' half width (the most the hold can be)
+    within 1.6 sds above its centre; the gap's crossing width on half the span the jump is read
+    over."""
+    params = [Parameter("gap_hold_torque", "positive", "N·m", "hold"), Parameter("gap_torque", "positive", "N·m", "w")]
+    campaign = Campaign(Reducer("unit", rated_torque_Nm=40.0), Instrument(),
+                        (_loop(0.0, hold_Nm=hold, friction_Nm=friction, seed=seed),))
+    default = build_priors(params, campaign)
+    priors = build_priors(params, campaign, gap_from_crossings=True)
+    mean, sd = priors["gap_hold_torque"]
+    assert abs(mean - np.log(hold)) < 2 * sd, (np.exp(mean), hold)
+    assert 0 < np.log(hold + friction) - mean < 1.6 * sd
+    assert default["gap_hold_torque"] == (np.log(0.1 * 40.0), 1.5)
+    assert priors["gap_torque"][0] == pytest.approx(np.log(0.5 * 0.025 * 40.0), abs=0.05)
+    # no crossing, no prior from it: the default's
+    plain = Campaign(campaign.reducer, Instrument(), (_loop(0.0, gap_rad=0.0, seed=seed),))
+    assert build_priors(params, plain, gap_from_crossings=True) == build_priors(params, plain)

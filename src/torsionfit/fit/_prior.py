@@ -92,11 +92,13 @@ def first_look_ramp_time_s(campaign: Campaign) -> float | None:
     return float(np.median(durations)) if durations else None
 
 
-def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float]]:
+def build_priors(parameters, campaign: Campaign, gap_from_crossings: bool = False) -> dict[str, tuple[float, float]]:
     """(mean_u, sd_u) for each non-linear model parameter. Friction level and gap are centred
     on what the loops' cycles allow (:func:`first_look_loop`) when the campaign has them: a
     prior that lets friction exceed the loop's torque width, or the gap swallow the play, lets
-    the two trade places on loops that are not exactly the model's."""
+    the two trade places on loops that are not exactly the model's. ``gap_from_crossings``:
+    the held gap's hold torque and the gap's crossing width from the data's gap crossings
+    (:func:`gap_crossing_priors`)."""
     rated = campaign.reducer.rated_torque_Nm
     k0 = first_look_stiffness(campaign)
     twist0 = rated / k0  # rated twist, rad
@@ -162,6 +164,8 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         crossings = gap_crossings(campaign.hysteresis_runs)
         if math.isfinite(crossings.centre_Nm):
             table["gap_centre_torque"] = (crossings.centre_Nm, crossings.span_Nm)
+    if gap_from_crossings:
+        table.update(gap_crossing_priors(campaign))
     loop = first_look_loop(campaign) if any(p.name in ("gap", "friction_torque") for p in parameters) else None
     if loop is not None:
         play, friction = loop
@@ -175,4 +179,34 @@ def build_priors(parameters, campaign: Campaign) -> dict[str, tuple[float, float
         if p.name not in table:
             raise KeyError(f"no prior for model parameter {p.name!r}")
         out[p.name] = table[p.name]
+    return out
+
+
+
+
+#: the hold torque's log-sd under :func:`gap_crossing_priors`: the crossings' half width, the
+#: most the hold can be, 1.4 sd above its centre, twice it 2.8 sd
+HOLD_LOG_SD = 0.5
+
+
+def gap_crossing_priors(campaign: Campaign) -> dict[str, tuple[float, float]]:
+    """Priors of the held gap's hold torque T_h and the gap's crossing width from where the
+    large cycles' twist jumps (:func:`~torsionfit.metrics.gap_crossings`; empty when the data
+    show no crossing both ways).
+
+    The flanks cross the gap where the *mesh* torque reaches c ± T_h; friction in parallel
+    carries part of the applied torque, so the data cross at c ± (T_h + friction), and T_h is at
+    most the crossings' half width h. The data do not split h between the two (the play ramps'
+    friction reading holds the hold as well where they cross the gap), so T_h is centred on h/2
+    with log-sd :data:`HOLD_LOG_SD`: the hold cannot become a second friction element that
+    releases far from where the data cross. The crossing is a jump over the torque span it is
+    read over: the gap's tanh width is centred on half that span (log-sd 1), so the gap cannot
+    spread into a compliance."""
+    crossings = gap_crossings(campaign.hysteresis_runs)
+    half_width, span = crossings.half_width_Nm, crossings.span_Nm
+    if not (math.isfinite(half_width) and half_width > 0):
+        return {}
+    out = {"gap_hold_torque": (math.log(0.5 * half_width), HOLD_LOG_SD)}
+    if math.isfinite(span) and span > 0:
+        out["gap_torque"] = (math.log(0.5 * span), 1.0)
     return out

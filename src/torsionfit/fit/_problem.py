@@ -594,8 +594,9 @@ def _likelihood_keep(campaign: Campaign, inputs, first_excursions: bool) -> list
 
 @in_float64
 def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOptions = NoiseOptions(),
-                  latent_torque: bool = True) -> FitProblem:
-    """The fitting problem for ``campaign`` under ``model``; InputError on unusable data."""
+                  latent_torque: bool = True, gap_prior_from_crossings: bool = False) -> FitProblem:
+    """The fitting problem for ``campaign`` under ``model``; InputError on unusable data.
+    ``gap_prior_from_crossings``: :func:`~torsionfit.fit._prior.build_priors`' ``gap_from_crossings``."""
     kinds = tuple(r.kind for r in campaign.runs)
     if model.run_kinds != kinds:
         raise ValueError(f"model is for runs {model.run_kinds}, campaign has {kinds}")
@@ -608,7 +609,7 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
     params = model.parameters()
     physics = tuple(p for p in params if not p.linear)
     linear = tuple(p for p in params if p.linear)
-    priors = build_priors(params, campaign)
+    priors = build_priors(params, campaign, gap_from_crossings=gap_prior_from_crossings)
     prior_mean = np.concatenate([np.full(p.size, priors[p.name][0]) for p in physics])
     prior_sd = np.concatenate([np.full(p.size, priors[p.name][1]) for p in physics])
     inputs, torque_var = model_inputs(campaign, noise.denoise_fraction, return_variance=True)

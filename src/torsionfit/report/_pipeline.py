@@ -89,6 +89,9 @@ class FitOptions:
     # the split normal of each other optimum the starts reached beside the MAP's, the draws a
     # mixture weighted by their Laplace evidence (:func:`optima_mixture`); ``laplace_shape`` "split"
     optima_mixture: bool = False
+    # the held gap's hold torque and the gap's crossing width centred on the data's gap crossings
+    # (:func:`~torsionfit.fit._prior.gap_crossing_priors`) instead of the rated torque's scale
+    gap_prior_from_crossings: bool = False
 
     @property
     def map_budget(self) -> dict:
@@ -172,7 +175,8 @@ def prepare_fit(campaign: Campaign, options: FitOptions = FitOptions()):
         raise InputError("campaign has no runs to fit")
     campaign = decimate(campaign, options.decimate)
     model = campaign_model(campaign, options)
-    return campaign, model, build_problem(campaign, model, options.noise)
+    return campaign, model, build_problem(campaign, model, options.noise,
+                                          gap_prior_from_crossings=options.gap_prior_from_crossings)
 
 
 #: effects whose model contains the model without them as their parameter goes to zero
@@ -210,7 +214,8 @@ def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
     if not nested:
         return None
     inner_options = dataclasses.replace(options, effects=inner_effects)
-    inner_problem = build_problem(campaign, campaign_model(campaign, inner_options), options.noise)
+    inner_problem = build_problem(campaign, campaign_model(campaign, inner_options), options.noise,
+                                  gap_prior_from_crossings=options.gap_prior_from_crossings)
     names = [r.name for r in campaign.runs]
     log.info("first the MAP without %s (its optimum is a start of the full fit)", ", ".join(nested))
     inner = fit_map(inner_problem, names, n_starts=options.n_starts, seed=seed, **options.map_budget)
