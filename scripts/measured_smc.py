@@ -57,10 +57,13 @@ def _progress_lines(unit: str) -> None:
 
 
 def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | None = None,
-              optima_mixture: bool = False, progress: bool = False) -> dict:
+              optima_mixture: bool = False, progress: bool = False, gap_prior_from_crossings: bool = False) -> dict:
     """Fit one loop both ways and write its row at once (a run stopped part-way keeps its done loops).
-    ``optima_mixture``: both start from the mixture over the optima (FitOptions.optima_mixture)."""
-    args = mv.parse_args(["--units", unit, "-o", "unused", *(["--optima-mixture"] if optima_mixture else [])])
+    ``optima_mixture``: both start from the mixture over the optima (FitOptions.optima_mixture);
+    ``gap_prior_from_crossings``: both with the gap's prior read off the data's gap crossings
+    (FitOptions.gap_prior_from_crossings)."""
+    args = mv.parse_args(["--units", unit, "-o", "unused", *(["--optima-mixture"] if optima_mixture else []),
+                          *(["--gap-prior-from-crossings"] if gap_prior_from_crossings else [])])
     path = mv._data_path(unit)
     ramps = mv.test_numbers(path)
     last = mv.held_ramp(ramps, 1)
@@ -99,6 +102,8 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
     out["kernel"] = kernel_settings()
     if optima_mixture:
         out["optima_mixture"] = True
+    if gap_prior_from_crossings:
+        out["gap_prior_from_crossings"] = True
     path = _row_path(output, unit)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1, default=float))
@@ -135,13 +140,15 @@ def departure(split_normal: np.ndarray, particles: np.ndarray, names: list[str])
             for i in order]
 
 
-def _done_row(output: Path, unit: str, particles: int, seed: int, optima_mixture: bool = False) -> dict | None:
+def _done_row(output: Path, unit: str, particles: int, seed: int, optima_mixture: bool = False,
+              gap_prior_from_crossings: bool = False) -> dict | None:
     """The row a previous run wrote for this unit with the same settings, else None."""
     path = _row_path(output, unit)
     if not path.is_file():
         return None
     row = json.loads(path.read_text())
-    same = (row.get("particles"), row.get("seed"), row.get("optima_mixture", False)) == (particles, seed, optima_mixture)
+    same = ((row.get("particles"), row.get("seed"), row.get("optima_mixture", False),
+             row.get("gap_prior_from_crossings", False)) == (particles, seed, optima_mixture, gap_prior_from_crossings))
     return row if same else None
 
 
@@ -152,9 +159,12 @@ def _metric(entry: dict, name: str) -> str:
     return f"{m['mean']:.4g} ({m['hdi95'][0]:.4g}–{m['hdi95'][1]:.4g})"
 
 
-def markdown(rows: list[dict], particles: int, optima_mixture: bool = False) -> str:
+def markdown(rows: list[dict], particles: int, optima_mixture: bool = False, gap_prior_from_crossings: bool = False) -> str:
     start = (", both from the mixture of split normals over the optima the MAP starts reached, weighted by their Laplace "
              "evidence (--optima-mixture; the 'split normal' columns are that mixture's draws)" if optima_mixture else "")
+    if gap_prior_from_crossings:
+        start += (", both with the held gap's hold torque and the gap's crossing width centred on the data's gap "
+                  "crossings (--gap-prior-from-crossings)")
     lines = [
         f"Tempered SMC against the split normal on measured loops ({mv.SOURCE}), each fitted as the validation fits it{start} "
         f"(`scripts/measured_smc.py`; SMC: {particles} particles, HMC moves with the particles' covariance as inverse "
@@ -220,6 +230,9 @@ def main(argv=None) -> int:
     p.add_argument("--optima-mixture", action="store_true",
                    help="start both from the mixture of split normals over the optima the MAP starts reached "
                         "(FitOptions.optima_mixture)")
+    p.add_argument("--gap-prior-from-crossings", action="store_true",
+                   help="fit both with the gap's prior read off the data's gap crossings "
+                        "(FitOptions.gap_prior_from_crossings)")
     p.add_argument("--progress", action="store_true", help="print the fits' progress (the SMC stages) on stderr")
     p.add_argument("--force", action="store_true",
                    help="refit loops whose row a previous run with the same settings wrote (default: reuse it)")
@@ -228,7 +241,8 @@ def main(argv=None) -> int:
         print(f"{mv.DATA} is absent: nothing to fit")
         return 0
     args.output.mkdir(parents=True, exist_ok=True)
-    done = {u: None if args.force else _done_row(args.output, u, args.particles, args.seed, args.optima_mixture) for u in args.units}
+    done = {u: None if args.force else _done_row(args.output, u, args.particles, args.seed, args.optima_mixture,
+                                                 args.gap_prior_from_crossings) for u in args.units}
     todo = [u for u in args.units if done[u] is None]
     for u in args.units:
         if done[u] is not None:
@@ -237,11 +251,12 @@ def main(argv=None) -> int:
         fitted = dict(zip(todo, run_map(functools.partial(_fit_both, particles=args.particles, seed=args.seed,
                                                             output=args.output, draws=args.save_draws,
                                                             optima_mixture=args.optima_mixture,
+                                                            gap_prior_from_crossings=args.gap_prior_from_crossings,
                                                             progress=args.progress), todo)))
     rows = [done[u] or fitted[u] for u in args.units]
     (args.output / "smc.json").write_text(json.dumps({"source": mv.SOURCE, "particles": args.particles, "units": rows},
                                                      indent=1, default=float))
-    text = markdown(rows, args.particles, args.optima_mixture)
+    text = markdown(rows, args.particles, args.optima_mixture, args.gap_prior_from_crossings)
     (args.output / "smc.md").write_text(text + "\n")
     print(text)
     return 0

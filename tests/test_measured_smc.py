@@ -49,6 +49,21 @@ def test_a_loops_row_is_reused_only_with_the_same_particles_and_seed(tmp_path):
     assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 1) is None
     assert ms._done_row(tmp_path, "split-pccf-initial-pos5", 500, 0) is None
     assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 0, optima_mixture=True) is None
+    assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 0, gap_prior_from_crossings=True) is None
+
+
+def test_a_run_with_the_gap_prior_from_the_crossings_is_its_own_and_says_so(tmp_path):
+    path = ms._row_path(tmp_path, "split-pccf-preload1-pos1")
+    path.parent.mkdir(parents=True)
+    path.write_text('{"unit": "split-pccf-preload1-pos1", "particles": 500, "seed": 0, "gap_prior_from_crossings": true}')
+    assert ms._done_row(tmp_path, "split-pccf-preload1-pos1", 500, 0) is None
+    assert ms._done_row(tmp_path, "split-pccf-preload1-pos1", 500, 0, gap_prior_from_crossings=True) is not None
+    row = {"unit": "split-pccf-preload1-pos1", "environment": environment(),
+           "laplace": _entry((10.8, 10.5, 11.3), (0.1829, 0.1824, 0.1835), []),
+           "smc": _entry((10.5, 8.3, 12.6), (0.1820, 0.1770, 0.1878), [], smc_betas=[0.5, 1.0], smc_moves=[5, 9],
+                         smc_acceptance=[0.6, 0.6], smc_correlation_max=0.05, approximation_pareto_k=1.0)}
+    assert "--gap-prior-from-crossings" in ms.markdown([row], 500, gap_prior_from_crossings=True)
+    assert "--gap-prior-from-crossings" not in ms.markdown([row], 500)
 
 
 def test_a_run_from_the_optima_mixture_says_so_and_lists_each_loops_weights(tmp_path):
