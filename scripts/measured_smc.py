@@ -38,6 +38,9 @@ from torsionfit.sample import _smc as smc  # noqa: E402
 
 METRICS = ("play", "stiffness_loading")
 
+#: SMC's moves allowed per stage, the last (β = 1) too unless ``--final-moves`` says otherwise
+DEFAULT_MAX_MOVES = 100
+
 
 def _row_path(output: Path, unit: str) -> Path:
     return output / "units" / f"{unit}.json"
@@ -57,8 +60,10 @@ def _progress_lines(unit: str) -> None:
 
 
 def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | None = None,
-              optima_mixture: bool = False, progress: bool = False, gap_prior_from_crossings: bool = False) -> dict:
+              optima_mixture: bool = False, progress: bool = False, gap_prior_from_crossings: bool = False,
+              final_max_moves: int = DEFAULT_MAX_MOVES) -> dict:
     """Fit one loop both ways and write its row at once (a run stopped part-way keeps its done loops).
+    ``final_max_moves``: SMC's moves allowed at its last stage (β = 1).
     ``optima_mixture``: both start from the mixture over the optima (FitOptions.optima_mixture);
     ``gap_prior_from_crossings``: both with the gap's prior read off the data's gap crossings
     (FitOptions.gap_prior_from_crossings)."""
@@ -75,7 +80,7 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
         train = load_campaign(mv.manifest(unit, [r for r in ramps if r < last], Path(folder), None))
         for sampler in ("laplace", "smc"):
             options = dataclasses.replace(mv.fit_options(args, unit), sampler=sampler, smc_particles=particles,
-                                          progress=progress)
+                                          smc_final_max_moves=final_max_moves, progress=progress)
             t0 = time.perf_counter()
             fit = fit_campaign(train, options, seed=seed)
             seconds = time.perf_counter() - t0
@@ -104,6 +109,8 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
         out["optima_mixture"] = True
     if gap_prior_from_crossings:
         out["gap_prior_from_crossings"] = True
+    if final_max_moves != DEFAULT_MAX_MOVES:
+        out["final_max_moves"] = final_max_moves
     path = _row_path(output, unit)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1, default=float))
@@ -124,9 +131,11 @@ def kernel_settings() -> dict:
 def kernel_text(row: dict) -> str:
     """The row's HMC moves in a few words: mean leapfrog steps per move over its stages."""
     steps = row["smc"].get("smc_leapfrog_steps")
+    final = (f", {row['final_max_moves']} moves allowed at β = 1" if row.get("final_max_moves", DEFAULT_MAX_MOVES)
+             != DEFAULT_MAX_MOVES else "")
     if row.get("kernel") is None or not steps:
-        return "8, one step"
-    return f"{np.mean(steps):.0f}, drawn steps"
+        return "8, one step" + final
+    return f"{np.mean(steps):.0f}, drawn steps" + final
 
 
 def departure(split_normal: np.ndarray, particles: np.ndarray, names: list[str]) -> list[dict]:
@@ -141,14 +150,15 @@ def departure(split_normal: np.ndarray, particles: np.ndarray, names: list[str])
 
 
 def _done_row(output: Path, unit: str, particles: int, seed: int, optima_mixture: bool = False,
-              gap_prior_from_crossings: bool = False) -> dict | None:
+              gap_prior_from_crossings: bool = False, final_max_moves: int = DEFAULT_MAX_MOVES) -> dict | None:
     """The row a previous run wrote for this unit with the same settings, else None."""
     path = _row_path(output, unit)
     if not path.is_file():
         return None
     row = json.loads(path.read_text())
     same = ((row.get("particles"), row.get("seed"), row.get("optima_mixture", False),
-             row.get("gap_prior_from_crossings", False)) == (particles, seed, optima_mixture, gap_prior_from_crossings))
+             row.get("gap_prior_from_crossings", False), row.get("final_max_moves", DEFAULT_MAX_MOVES))
+            == (particles, seed, optima_mixture, gap_prior_from_crossings, final_max_moves))
     return row if same else None
 
 
@@ -168,7 +178,8 @@ def markdown(rows: list[dict], particles: int, optima_mixture: bool = False, gap
     lines = [
         f"Tempered SMC against the split normal on measured loops ({mv.SOURCE}), each fitted as the validation fits it{start} "
         f"(`scripts/measured_smc.py`; SMC: {particles} particles, HMC moves with the particles' covariance as inverse "
-        "mass matrix, at most 100 moves per stage; leapfrog steps: the mean per move, and the kernel — 'drawn steps': "
+        "mass matrix, at most 100 moves per stage (more at the last, β = 1, where the kernel column says so: there "
+        "the moves sample the posterior itself); leapfrog steps: the mean per move, and the kernel — 'drawn steps': "
         "each move's step the tuned one over a log-uniform factor up to 30, the trajectory π/2 of the particles' spread "
         "long; 'one step': eight steps of the tuned one, as rows made before the drawn steps). k: the Pareto k of "
         "posterior/split normal at the split normal's draws (≤ 0.7: they stand for the posterior); stages: tempering "
@@ -233,6 +244,9 @@ def main(argv=None) -> int:
     p.add_argument("--gap-prior-from-crossings", action="store_true",
                    help="fit both with the gap's prior read off the data's gap crossings "
                         "(FitOptions.gap_prior_from_crossings)")
+    p.add_argument("--final-moves", type=int, default=DEFAULT_MAX_MOVES,
+                   help=f"SMC's moves allowed at its last stage, β = 1 (default {DEFAULT_MAX_MOVES}, as at the stages "
+                        "before it; such rows are their own)")
     p.add_argument("--progress", action="store_true", help="print the fits' progress (the SMC stages) on stderr")
     p.add_argument("--force", action="store_true",
                    help="refit loops whose row a previous run with the same settings wrote (default: reuse it)")
@@ -242,7 +256,7 @@ def main(argv=None) -> int:
         return 0
     args.output.mkdir(parents=True, exist_ok=True)
     done = {u: None if args.force else _done_row(args.output, u, args.particles, args.seed, args.optima_mixture,
-                                                 args.gap_prior_from_crossings) for u in args.units}
+                                                 args.gap_prior_from_crossings, args.final_moves) for u in args.units}
     todo = [u for u in args.units if done[u] is None]
     for u in args.units:
         if done[u] is not None:
@@ -252,6 +266,7 @@ def main(argv=None) -> int:
                                                             output=args.output, draws=args.save_draws,
                                                             optima_mixture=args.optima_mixture,
                                                             gap_prior_from_crossings=args.gap_prior_from_crossings,
+                                                            final_max_moves=args.final_moves,
                                                             progress=args.progress), todo)))
     rows = [done[u] or fitted[u] for u in args.units]
     (args.output / "smc.json").write_text(json.dumps({"source": mv.SOURCE, "particles": args.particles, "units": rows},

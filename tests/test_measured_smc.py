@@ -50,6 +50,7 @@ def test_a_loops_row_is_reused_only_with_the_same_particles_and_seed(tmp_path):
     assert ms._done_row(tmp_path, "split-pccf-initial-pos5", 500, 0) is None
     assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 0, optima_mixture=True) is None
     assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 0, gap_prior_from_crossings=True) is None
+    assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 0, final_max_moves=300) is None
 
 
 def test_a_run_with_the_gap_prior_from_the_crossings_is_its_own_and_says_so(tmp_path):
@@ -104,6 +105,8 @@ def test_a_row_says_which_hmc_kernel_made_it():
     assert ms.kernel_text(row) == "8, one step"
     row["kernel"] = ms.kernel_settings()
     assert ms.kernel_text(row) == "21, drawn steps" and row["kernel"]["step_spread"] == 30.0
+    row["final_max_moves"] = 300  # a longer last stage is the row's own and says so
+    assert ms.kernel_text(row) == "21, drawn steps, 300 moves allowed at β = 1"
 
 
 def test_the_departure_lists_the_coordinates_the_particles_moved_most_first_in_the_split_normals_sd():

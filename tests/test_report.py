@@ -461,6 +461,7 @@ def test_smc_sampler_draws_the_posterior_and_reports_its_schedule(noisy_bench):
     assert d["sampler"] == "smc" and d["smc_particles"] == 200 and d["smc_betas"][-1] == 1.0
     assert d["converged"] == (d["reason"] == "") and d["converged"], d["reason"]
     assert len(d["smc_moves"]) == len(d["smc_betas"]) and d["smc_correlation_max"] <= 0.1
+    assert d["smc_max_moves"] == [100] * len(d["smc_betas"])
     assert len(d["smc_modes"]) == len(d["smc_betas"]) and sum(d["smc_mode_shares"]) == pytest.approx(1.0)
     assert len(d["smc_leapfrog_steps"]) == len(d["smc_betas"]) and all(1 <= s <= 64 for s in d["smc_leapfrog_steps"])
     assert 0.0 < d["smc_correlation_floor"] < 0.2

@@ -81,6 +81,21 @@ def test_moves_that_cannot_forget_the_start_are_not_converged():
     assert "did not forget their start within 1 moves" in res.reason and ", of p" in res.reason
 
 
+def test_the_last_stage_gets_its_own_move_budget():
+    """``final_max_moves`` lets the moves at β = 1 go on where the stages before stop: the
+    same run that cannot forget its start in one move at the last stage does in more."""
+    dim = 6
+    kwargs = dict(max_moves=3, min_moves=1, names=[f"p{i}" for i in range(dim)])
+    target = _target(np.ones(dim), 4.0 * np.eye(dim))
+    short = tempered_smc(target, _narrow_start(dim), np.random.default_rng(0), 300, **kwargs)
+    long = tempered_smc(target, _narrow_start(dim), np.random.default_rng(0), 300, final_max_moves=200, **kwargs)
+    assert long.stage_max_moves[-1] == 200 and set(long.stage_max_moves[:-1]) <= {3}
+    assert short.stage_max_moves[-1] == 3 and short.stage_correlation[-1] > 0.1
+    assert long.stage_moves[-1] > 3 and long.stage_correlation[-1] <= 0.1
+    with pytest.raises(ValueError, match="final_max_moves must be at least max_moves"):
+        tempered_smc(target, _narrow_start(dim), np.random.default_rng(0), 300, max_moves=10, final_max_moves=5)
+
+
 def test_a_posterior_zero_at_every_particle_stops_with_a_reason():
     res = tempered_smc(lambda x: np.full(len(x), -np.inf), _narrow_start(3), np.random.default_rng(0), 100)
     assert not res.converged and res.reason == "no particle has a finite posterior density"

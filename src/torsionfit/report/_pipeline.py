@@ -67,6 +67,7 @@ class FitOptions:
     resume: bool = False
     laplace_draws: int = 4000
     smc_particles: int = 1000  # tempered SMC's particles (= its draws)
+    smc_final_max_moves: int = 100  # SMC's moves allowed at β = 1 (100 at the stages before)
     laplace_shape: str = "gaussian"
     metric_draws: int = 2000  # draws used for the derived metrics
     lost_motion_pct: float = 3.0
@@ -403,6 +404,7 @@ def run_smc(problem, map_result, options: FitOptions, seed: int, other_optima=()
     names = tuple(getattr(map_result, "names", None) or (f"u[{i}]" for i in range(len(map_result.u))))
     return tempered_smc(log_density, approximation, np.random.default_rng(seed), options.smc_particles,
                         log_p_and_grad=_LogProbGrad(problem, batch=GRADIENT_BATCH), names=names, seed=seed,
+                        final_max_moves=options.smc_final_max_moves,
                         progress=log.info if options.progress else None)
 
 
@@ -450,6 +452,7 @@ def _sampler_diagnostics(sample_result, used: str, conv: dict, chain: np.ndarray
             "rhat_max": None,
             "ess_min": float(chain.shape[0]),
             "smc_particles": int(chain.shape[0]),
+            "smc_max_moves": [int(m) for m in sample_result.stage_max_moves],
             "smc_betas": [float(b) for b in sample_result.betas],
             "smc_moves": [int(m) for m in sample_result.stage_moves],
             "smc_acceptance": [float(a) for a in sample_result.stage_acceptance],

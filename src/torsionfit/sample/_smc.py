@@ -26,7 +26,7 @@ these did not forget their start within 100 moves near β = 1 (largest correlati
 The moves go on until every coordinate's
 correlation with the particles' positions at the start of the stage has fallen to
 ``decorrelation`` — the particles have forgotten where resampling put them — or
-``max_moves`` is reached, which counts as not converged. Where the moved particles sit in
+``max_moves`` is reached (``final_max_moves`` at β = 1), which counts as not converged. Where the moved particles sit in
 modes separated by many of their widths (:mod:`._modes`), the correlation is measured
 within them: the moves do not cross between such modes, and the particles' shares in them come
 from the tempering's weights, not from the moves. At β = 1 the particles are equally
@@ -106,6 +106,8 @@ class SMCResult(SampleResult):
     #: in two (:func:`correlation_floor`): where it exceeds the decorrelation asked, the particles
     #: are too few for the check to resolve it
     correlation_floor: float = float("nan")
+    #: per stage the moves it was allowed (``max_moves``; ``final_max_moves`` at β = 1)
+    stage_max_moves: tuple = ()
 
     sampler = "smc"
 
@@ -274,6 +276,7 @@ class _Hamiltonian:
 def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: int = 1000, *,
                  log_p_and_grad=None, leapfrog_steps: int | None = None,
                  target_ess: float = 0.5, min_moves: int = 5, max_moves: int = 100,
+                 final_max_moves: int | None = None,
                  decorrelation: float = 0.1, max_stages: int = 200, names=(), seed: int | None = None,
                  progress=None) -> SMCResult:
     """Draws of the posterior ``log_p`` (a function of (n, dim) u → (n,) log density, −inf where
@@ -282,8 +285,14 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
     posterior's log density and gradient ((n, dim) → ((n,), (n, dim)), −inf and a zero gradient
     where it is zero): the moves are then HMC (``leapfrog_steps`` per move, None: a trajectory
     of fixed length in the particles' spread, see the module docstring), else random-walk
-    Metropolis. ``progress``: called with one line per stage."""
+    Metropolis. ``final_max_moves``: the moves allowed at the last stage (β = 1; None: ``max_moves``)
+    — there they are the posterior's own Markov chains, so more of them only sample it longer,
+    and the particles take longest to forget their start there (the narrowest target, the
+    shortest step). ``progress``: called with one line per stage."""
     names = tuple(names)
+    final_max_moves = max_moves if final_max_moves is None else int(final_max_moves)
+    if final_max_moves < max_moves:
+        raise ValueError(f"tempered_smc: final_max_moves must be at least max_moves ({max_moves}), got {final_max_moves}")
     min_moves = max(1, min(min_moves, max_moves))
     x = np.asarray(approximation.draw(rng, n_particles), float)
     n, dim = x.shape
@@ -303,6 +312,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
                  f"start (particles that forgot it show {floor:.2f} at one check in two; "
                  f"about {particles_resolving(decorrelation, dim)} resolve it)")
     beta, betas, moves, accept, corr, slowest, steps, modes, trajectory = 0.0, [], [], [], [], [], [], [], []
+    budgets = []
     reason = ""
     while beta < 1.0:
         if len(betas) >= max_stages:
@@ -323,7 +333,9 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         taken = len(getattr(kernel, "steps_taken", ()))
         start = state[0].copy()
         rates = []
-        for m in range(1, max_moves + 1):
+        budget = final_max_moves if beta >= 1.0 else max_moves
+        budgets.append(budget)
+        for m in range(1, budget + 1):
             rate = kernel.move(m, state, rng)
             if rate is not None:
                 rates.append(rate)
@@ -350,7 +362,8 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         stuck = [i + 1 for i, c in enumerate(corr) if c > decorrelation]
         worst = slowest[int(np.argmax(corr))]
         who = names[worst] if worst < len(names) else f"u[{worst}]"
-        reason = (f"the particles did not forget their start within {max_moves} moves at stage(s) "
+        within = sorted({budgets[i - 1] for i in stuck})
+        reason = (f"the particles did not forget their start within {' or '.join(map(str, within))} moves at stage(s) "
                   f"{', '.join(map(str, stuck))} (largest correlation {max(corr):.2f} > {decorrelation}, of {who})")
         if max(corr) <= floor_90:
             # the stall is within the check's noise: it cannot tell these particles from ones that forgot
@@ -373,6 +386,6 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         moves=f"tempered SMC from the split normal: {n} particles, {len(betas)} stages, {how}",
         betas=tuple(betas), stage_moves=tuple(moves), stage_acceptance=tuple(accept), stage_correlation=tuple(corr),
         approximation_pareto_k=float(k_q), stage_step_size=tuple(steps), stage_leapfrog_steps=tuple(trajectory),
-        stage_modes=tuple(modes),
+        stage_modes=tuple(modes), stage_max_moves=tuple(budgets),
         mode_shares=tuple(float(s) for s in np.bincount(labels) / n) if betas else (),
         correlation_floor=floor)
