@@ -10,6 +10,9 @@ particles at every stage, and the class metrics (model mean and 95 % HDI against
 reading of the same record) of both.
 
     .venv/bin/python scripts/measured_smc.py --units split-pccf-preload2-pos5 -o docs/measured/smc
+
+The page is the output folder's: every loop's row saved there (``units/``), whichever run made it;
+``--render`` writes it again from them without fitting.
 """
 
 from __future__ import annotations
@@ -162,6 +165,18 @@ def _done_row(output: Path, unit: str, particles: int, seed: int, optima_mixture
     return row if same else None
 
 
+def saved_rows(output: Path) -> list[dict]:
+    """Every loop's row saved in ``output`` (its ``units/`` folder), by loop name: the page is the
+    folder's, so a run of one loop adds its row to the others' instead of replacing them."""
+    return [json.loads(p.read_text()) for p in sorted((output / "units").glob("*.json"))]
+
+
+def page_particles(rows: list[dict], default: int) -> int | str:
+    """The particles the page's header names: the rows' one count, else the range they span."""
+    counts = sorted({r.get("particles", default) for r in rows}) or [default]
+    return counts[0] if len(counts) == 1 else f"{counts[0]}–{counts[-1]} (each row its own)"
+
+
 def _metric(entry: dict, name: str) -> str:
     m = entry["metrics"].get(name)
     if m is None:
@@ -169,7 +184,7 @@ def _metric(entry: dict, name: str) -> str:
     return f"{m['mean']:.4g} ({m['hdi95'][0]:.4g}–{m['hdi95'][1]:.4g})"
 
 
-def markdown(rows: list[dict], particles: int, optima_mixture: bool = False, gap_prior_from_crossings: bool = False) -> str:
+def markdown(rows: list[dict], particles: int | str, optima_mixture: bool = False, gap_prior_from_crossings: bool = False) -> str:
     start = (", both from the mixture of split normals over the optima the MAP starts reached, weighted by their Laplace "
              "evidence (--optima-mixture; the 'split normal' columns are that mixture's draws)" if optima_mixture else "")
     if gap_prior_from_crossings:
@@ -231,7 +246,7 @@ def markdown(rows: list[dict], particles: int, optima_mixture: bool = False, gap
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--units", nargs="+", required=True)
+    p.add_argument("--units", nargs="+", default=[])
     p.add_argument("-o", "--output", type=Path, required=True)
     p.add_argument("--particles", type=int, default=1000)
     p.add_argument("--seed", type=int, default=0)
@@ -250,7 +265,13 @@ def main(argv=None) -> int:
     p.add_argument("--progress", action="store_true", help="print the fits' progress (the SMC stages) on stderr")
     p.add_argument("--force", action="store_true",
                    help="refit loops whose row a previous run with the same settings wrote (default: reuse it)")
+    p.add_argument("--render", action="store_true",
+                   help="fit nothing: write the page from the rows saved in the output folder")
     args = p.parse_args(argv)
+    if not args.units and not args.render:
+        p.error("--units: name the loops to fit (or --render to write the page from the saved rows)")
+    if args.render:
+        return write_page(args.output, args.particles, args.optima_mixture, args.gap_prior_from_crossings)
     if not mv.DATA.is_dir():
         print(f"{mv.DATA} is absent: nothing to fit")
         return 0
@@ -262,17 +283,26 @@ def main(argv=None) -> int:
         if done[u] is not None:
             print(f"{u}: reusing {_row_path(args.output, u)} (--force refits it)")
     with executor(workers=args.jobs) as run_map:
-        fitted = dict(zip(todo, run_map(functools.partial(_fit_both, particles=args.particles, seed=args.seed,
-                                                            output=args.output, draws=args.save_draws,
-                                                            optima_mixture=args.optima_mixture,
-                                                            gap_prior_from_crossings=args.gap_prior_from_crossings,
-                                                            final_max_moves=args.final_moves,
-                                                            progress=args.progress), todo)))
-    rows = [done[u] or fitted[u] for u in args.units]
-    (args.output / "smc.json").write_text(json.dumps({"source": mv.SOURCE, "particles": args.particles, "units": rows},
-                                                     indent=1, default=float))
-    text = markdown(rows, args.particles, args.optima_mixture, args.gap_prior_from_crossings)
-    (args.output / "smc.md").write_text(text + "\n")
+        list(run_map(functools.partial(_fit_both, particles=args.particles, seed=args.seed,
+                                       output=args.output, draws=args.save_draws,
+                                       optima_mixture=args.optima_mixture,
+                                       gap_prior_from_crossings=args.gap_prior_from_crossings,
+                                       final_max_moves=args.final_moves,
+                                       progress=args.progress), todo))  # each row saved as it is done
+    return write_page(args.output, args.particles, args.optima_mixture, args.gap_prior_from_crossings)
+
+
+def write_page(output: Path, particles: int, optima_mixture: bool = False, gap_prior_from_crossings: bool = False) -> int:
+    """smc.json and smc.md in ``output`` from every row saved there."""
+    rows = saved_rows(output)
+    if not rows:
+        print(f"{output / 'units'}: no saved rows to write a page from (fit some loops first: --units ...)")
+        return 2
+    count = page_particles(rows, particles)
+    (output / "smc.json").write_text(json.dumps({"source": mv.SOURCE, "particles": count, "units": rows},
+                                                indent=1, default=float))
+    text = markdown(rows, count, optima_mixture, gap_prior_from_crossings)
+    (output / "smc.md").write_text(text + "\n")
     print(text)
     return 0
 

@@ -140,3 +140,35 @@ def test_progress_lines_are_torsionfits_own_named_by_the_loop_and_leave_other_li
         for handler in list(logger.handlers):
             logger.removeHandler(handler)
         logger.setLevel(logging.NOTSET)
+
+
+def test_the_page_is_the_folders_a_run_of_one_loop_keeps_the_others_rows(tmp_path, monkeypatch, capsys):
+    """The page is written from every row saved in the folder, whichever run made it: a run of one
+    loop adds its row; --render writes the page again without fitting; rows of other particle
+    counts are named as such in the header."""
+    smc = dict(smc_betas=[0.5, 1.0], smc_moves=[5, 9], smc_acceptance=[0.6, 0.6], smc_correlation_max=0.05,
+               approximation_pareto_k=1.0)
+    for unit, particles in (("split-pccf-initial-pos1", 500), ("split-pccf-initial-pos5", 1000)):
+        row = {"unit": unit, "environment": environment(), "particles": particles, "seed": 0,
+               "laplace": _entry((10.8, 10.5, 11.3), (0.1829, 0.1824, 0.1835), []),
+               "smc": _entry((10.5, 8.3, 12.6), (0.1820, 0.1770, 0.1878), [], **smc)}
+        path = ms._row_path(tmp_path, unit)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(ms.json.dumps(row))
+    assert ms.main(["-o", str(tmp_path), "--render"]) == 0
+    text = (tmp_path / "smc.md").read_text()
+    assert "| split-pccf-initial-pos1 |" in text and "| split-pccf-initial-pos5 |" in text
+    assert "SMC: 500–1000 (each row its own) particles" in text
+    assert len(ms.json.loads((tmp_path / "smc.json").read_text())["units"]) == 2
+    # a run naming only one loop whose row is saved reuses it and keeps the other's on the page
+    monkeypatch.setattr(ms.mv, "DATA", tmp_path)  # present, so the run goes on to the rows
+    assert ms.main(["--units", "split-pccf-initial-pos1", "-o", str(tmp_path), "--particles", "500"]) == 0
+    assert "| split-pccf-initial-pos5 |" in (tmp_path / "smc.md").read_text()
+
+
+def test_render_of_an_empty_folder_says_so_and_a_run_must_name_loops(tmp_path, capsys):
+    assert ms.main(["-o", str(tmp_path), "--render"]) == 2
+    assert "no saved rows" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        ms.main(["-o", str(tmp_path)])
+    assert "--units: name the loops" in capsys.readouterr().err
