@@ -12,7 +12,8 @@ reading of the same record) of both.
     .venv/bin/python scripts/measured_smc.py --units split-pccf-preload2-pos5 -o docs/measured/smc
 
 The page is the output folder's: every loop's row saved there (``units/``), whichever run made it;
-``--render`` writes it again from them without fitting.
+``--render`` writes it again from them without fitting. An SMC run keeps its state after every
+stage in ``checkpoints/``: the same command after a stop goes on from there (``--force``: afresh).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ import torsionfit  # noqa: E402
 from torsionfit._provenance import environment  # noqa: E402
 from torsionfit.batch import executor  # noqa: E402
 from torsionfit.io import load_campaign  # noqa: E402
-from torsionfit.report import fit_campaign, metrics_against_data  # noqa: E402
+from torsionfit.report import fit_campaign, metrics_against_data, smc_checkpoint_path  # noqa: E402
 from torsionfit.sample import _smc as smc  # noqa: E402
 
 METRICS = ("play", "stiffness_loading")
@@ -62,11 +63,22 @@ def _progress_lines(unit: str) -> None:
     logger.setLevel(logging.INFO)
 
 
+def _chain_path(output: Path, unit: str, particles: int, seed: int, optima_mixture: bool,
+                gap_prior_from_crossings: bool, final_max_moves: int) -> Path:
+    """The fit's ``backend_path`` for SMC: its checkpoint is ``<this stem>-smc.npz``, one per loop
+    and settings (a run of other settings neither reads nor overwrites it)."""
+    tags = [f"p{particles}", f"s{seed}", f"m{final_max_moves}"] + (["mixture"] if optima_mixture else []) + (
+        ["gap-prior"] if gap_prior_from_crossings else [])
+    return output / "checkpoints" / f"{unit}-{'-'.join(tags)}.h5"
+
+
 def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | None = None,
               optima_mixture: bool = False, progress: bool = False, gap_prior_from_crossings: bool = False,
-              final_max_moves: int = DEFAULT_MAX_MOVES) -> dict:
+              final_max_moves: int = DEFAULT_MAX_MOVES, resume: bool = True) -> dict:
     """Fit one loop both ways and write its row at once (a run stopped part-way keeps its done loops).
-    ``final_max_moves``: SMC's moves allowed at its last stage (β = 1).
+    ``final_max_moves``: SMC's moves allowed at its last stage (β = 1). The SMC run keeps its state
+    after every stage in ``output/checkpoints/`` (removed once the row is written); ``resume``: a
+    run stopped part-way goes on from there (False: starts afresh).
     ``optima_mixture``: both start from the mixture over the optima (FitOptions.optima_mixture);
     ``gap_prior_from_crossings``: both with the gap's prior read off the data's gap crossings
     (FitOptions.gap_prior_from_crossings)."""
@@ -79,11 +91,14 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
     draws_of, names = {}, []
     if progress:
         _progress_lines(unit)
+    chain = _chain_path(output, unit, particles, seed, optima_mixture, gap_prior_from_crossings, final_max_moves)
+    chain.parent.mkdir(parents=True, exist_ok=True)
     with torsionfit.float64(), tempfile.TemporaryDirectory() as folder:
         train = load_campaign(mv.manifest(unit, [r for r in ramps if r < last], Path(folder), None))
         for sampler in ("laplace", "smc"):
             options = dataclasses.replace(mv.fit_options(args, unit), sampler=sampler, smc_particles=particles,
-                                          smc_final_max_moves=final_max_moves, progress=progress)
+                                          smc_final_max_moves=final_max_moves, progress=progress,
+                                          **({"backend_path": str(chain), "resume": resume} if sampler == "smc" else {}))
             t0 = time.perf_counter()
             fit = fit_campaign(train, options, seed=seed)
             seconds = time.perf_counter() - t0
@@ -117,6 +132,7 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
     path = _row_path(output, unit)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1, default=float))
+    Path(smc_checkpoint_path(options)).unlink(missing_ok=True)  # the row holds the run now
     return out
 
 
@@ -264,7 +280,8 @@ def main(argv=None) -> int:
                         "before it; such rows are their own)")
     p.add_argument("--progress", action="store_true", help="print the fits' progress (the SMC stages) on stderr")
     p.add_argument("--force", action="store_true",
-                   help="refit loops whose row a previous run with the same settings wrote (default: reuse it)")
+                   help="refit loops whose row a previous run with the same settings wrote (default: reuse it), "
+                        "and start SMC runs afresh (default: a run stopped part-way goes on from its checkpoint)")
     p.add_argument("--render", action="store_true",
                    help="fit nothing: write the page from the rows saved in the output folder")
     args = p.parse_args(argv)
@@ -287,7 +304,7 @@ def main(argv=None) -> int:
                                        output=args.output, draws=args.save_draws,
                                        optima_mixture=args.optima_mixture,
                                        gap_prior_from_crossings=args.gap_prior_from_crossings,
-                                       final_max_moves=args.final_moves,
+                                       final_max_moves=args.final_moves, resume=not args.force,
                                        progress=args.progress), todo))  # each row saved as it is done
     return write_page(args.output, args.particles, args.optima_mixture, args.gap_prior_from_crossings)
 

@@ -231,6 +231,7 @@ def test_ctrl_c_in_the_sampler_is_not_a_page_of_walker_positions(capsys):
 
 @pytest.mark.parametrize("extra, says", [
     (["--save-chain"], "the same command with --resume continues it"),
+    (["--save-chain", "--sampler", "smc"], "chain-smc.npz: the same command with --resume continues it"),
     ([], "no chain was kept (--save-chain keeps one that --resume continues)"),
 ])
 def test_ctrl_c_during_a_fit_is_one_line_and_exit_130(tmp_path, capsys, monkeypatch, extra, says):

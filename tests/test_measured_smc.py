@@ -172,3 +172,19 @@ def test_render_of_an_empty_folder_says_so_and_a_run_must_name_loops(tmp_path, c
     with pytest.raises(SystemExit):
         ms.main(["-o", str(tmp_path)])
     assert "--units: name the loops" in capsys.readouterr().err
+
+
+def test_each_loop_and_settings_keeps_its_own_smc_checkpoint_in_the_output_folder(tmp_path):
+    from torsionfit.report import FitOptions, smc_checkpoint_path
+
+    base = dict(unit="split-pccf-preload2-pos1", particles=500, seed=0, optima_mixture=False,
+                gap_prior_from_crossings=False, final_max_moves=300)
+    path = ms._chain_path(tmp_path, **base)
+    checkpoint = Path(smc_checkpoint_path(FitOptions(backend_path=str(path))))
+    assert checkpoint.parent == tmp_path / "checkpoints" and checkpoint.name.startswith("split-pccf-preload2-pos1-")
+    assert checkpoint.suffix == ".npz"
+    # a run of other settings neither resumes nor overwrites it
+    others = [dict(base, unit="split-pccf-preload3-pos5"), dict(base, particles=1000), dict(base, seed=1),
+              dict(base, optima_mixture=True), dict(base, gap_prior_from_crossings=True), dict(base, final_max_moves=100)]
+    assert len({path, *(ms._chain_path(tmp_path, **o) for o in others)}) == 1 + len(others)
+    assert smc_checkpoint_path(FitOptions()) is None  # no chain kept: no checkpoint

@@ -1,6 +1,7 @@
 """Derived metrics, fit.json and `torsionfit fit` (Laplace path; the emcee path is in
 tests/test_sample.py and the statistical tests)."""
 
+import dataclasses
 import json
 import warnings
 from pathlib import Path
@@ -451,12 +452,18 @@ def test_the_gap_with_a_soft_first_segment_is_a_metric_of_three_segment_models(n
         assert out["geometric_gap"] == pytest.approx(values["gap"] / arcmin, rel=1e-9)
 
 
-def test_smc_sampler_draws_the_posterior_and_reports_its_schedule(noisy_bench):
+def test_smc_sampler_draws_the_posterior_and_reports_its_schedule(noisy_bench, tmp_path):
     """``sampler="smc"``: tempered SMC from the split normal; on the model's own bench the
     posterior is near Gaussian, so the particles agree with the Laplace draws' spread, and
-    fit.json carries the schedule and whether every stage's moves forgot their start."""
+    fit.json carries the schedule and whether every stage's moves forgot their start. Keeping
+    the chain (``backend_path``) keeps SMC's state in ``chain-smc.npz``; resumed, the finished
+    run's particles come back as they were."""
     sim = simulate(load_bench(noisy_bench), seed=4)
-    fit = fit_campaign(sim.campaign, FitOptions(sampler="smc", n_starts=2, smc_particles=200, progress=False), seed=0)
+    options = FitOptions(sampler="smc", n_starts=2, smc_particles=200, progress=False, backend_path=str(tmp_path / "chain.h5"))
+    fit = fit_campaign(sim.campaign, options, seed=0)
+    assert (tmp_path / "chain-smc.npz").is_file()
+    again = fit_campaign(sim.campaign, dataclasses.replace(options, resume=True), seed=0)
+    np.testing.assert_array_equal(again.draws_u, fit.draws_u)
     d = fit.diagnostics
     assert d["sampler"] == "smc" and d["smc_particles"] == 200 and d["smc_betas"][-1] == 1.0
     assert d["converged"] == (d["reason"] == "") and d["converged"], d["reason"]

@@ -268,7 +268,7 @@ def _interrupted(args) -> str:
     if args.command == "fit":
         if args.save_chain or args.resume:
             out = Path(args.output)
-            files = {"emcee": f"{out / 'chain.h5'}", "nuts": f"{out / 'chain-nuts.npz'}"}
+            files = {"emcee": f"{out / 'chain.h5'}", "nuts": f"{out / 'chain-nuts.npz'}", "smc": f"{out / 'chain-smc.npz'}"}
             where = files.get(args.sampler) or f"{files['emcee']} (emcee) or {files['nuts']} (NUTS)"
             return f"interrupted; the chain so far is kept in {where}: the same command with --resume continues it"
         return "interrupted; no chain was kept (--save-chain keeps one that --resume continues)"
@@ -388,7 +388,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the same first excursions drive the model's state but are out of the likelihood "
                         "(conditioning cycles); the samples left out go to fit.json")
     p.add_argument("--save-chain", action="store_true",
-                   help="keep the chain in OUTPUT/chain.h5 (emcee) / OUTPUT/chain-nuts.npz (NUTS)")
+                   help="keep the chain in OUTPUT/chain.h5 (emcee) / OUTPUT/chain-nuts.npz (NUTS) / "
+                        "OUTPUT/chain-smc.npz (smc: its particles after every stage)")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run from those files")
     _add_decimate(p, help="fit block means of N consecutive samples (dense benches; recorded in fit.json)")
     p.set_defaults(func=_cmd_fit)

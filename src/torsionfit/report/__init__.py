@@ -11,6 +11,7 @@ from ._pipeline import (
     metrics_against_data as metrics_against_data,
     prepare_fit as prepare_fit,
     sampler_kwargs as sampler_kwargs,
+    smc_checkpoint_path as smc_checkpoint_path,
     summarise as summarise,
     summary_table as summary_table,
     write_fit as write_fit,

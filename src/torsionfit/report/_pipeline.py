@@ -392,7 +392,8 @@ def run_smc(problem, map_result, options: FitOptions, seed: int, other_optima=()
     """Tempered SMC (:func:`~torsionfit.sample.tempered_smc`) from the split normal along the
     Laplace axes to ``problem``'s posterior (widened, when it is), ``options.smc_particles``
     particles moved by HMC (the posterior's gradient by JAX, in chunks of
-    :data:`GRADIENT_BATCH`). With ``options.optima_mixture`` the particles start from the mixture
+    :data:`GRADIENT_BATCH`); the state is kept after every stage where ``options.backend_path``
+    keeps a chain (:func:`smc_checkpoint_path`), and ``options.resume`` goes on from it. With ``options.optima_mixture`` the particles start from the mixture
     over ``other_optima`` and the MAP's (:func:`optima_mixture`), in every optimum by its weight."""
     from ..sample import tempered_smc
     from ..sample._emcee import _LogProb, _LogProbGrad
@@ -405,7 +406,16 @@ def run_smc(problem, map_result, options: FitOptions, seed: int, other_optima=()
     return tempered_smc(log_density, approximation, np.random.default_rng(seed), options.smc_particles,
                         log_p_and_grad=_LogProbGrad(problem, batch=GRADIENT_BATCH), names=names, seed=seed,
                         final_max_moves=options.smc_final_max_moves,
-                        progress=log.info if options.progress else None)
+                        progress=log.info if options.progress else None,
+                        checkpoint=smc_checkpoint_path(options), resume=options.resume)
+
+
+def smc_checkpoint_path(options: FitOptions) -> str | None:
+    """SMC's checkpoint file under ``options`` (next to emcee's chain: ``chain.h5`` →
+    ``chain-smc.npz``), None when no chain is kept."""
+    if options.backend_path is None:
+        return None
+    return str(Path(options.backend_path).with_name(Path(options.backend_path).stem + "-smc.npz"))
 
 
 def sample_posterior(problem, map_result, options: FitOptions, seed: int, other_optima=()):

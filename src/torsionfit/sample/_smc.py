@@ -41,11 +41,13 @@ posterior is a batched program.
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.stats import norm
 
+from . import _smc_checkpoint as ckpt
 from ._emcee import SampleResult
 from ._modes import correlations_with_start
 from ._pareto import importance_pareto_k
@@ -184,6 +186,13 @@ class _RandomWalk:
         self.log_p, self.approximation = log_p, approximation
         self.scale = 2.38 / np.sqrt(dim)
 
+    def tuned(self) -> dict:
+        """What the kernel has tuned so far (a checkpoint's part)."""
+        return {"scale": float(self.scale)}
+
+    def restore(self, tuned: dict) -> None:
+        self.scale = float(tuned["scale"])
+
     def start_stage(self, x, beta):
         self.beta = beta
         self.chol = np.linalg.cholesky(_particle_covariance(x))
@@ -228,6 +237,13 @@ class _Hamiltonian:
         self.leapfrog_steps = None if leapfrog_steps is None else int(leapfrog_steps)
         self.step = 1.0 / dim ** 0.25
         self.steps_taken = []  # leapfrog steps of each move (gradient evaluations per particle)
+
+    def tuned(self) -> dict:
+        """What the kernel has tuned so far, and the trajectories' lengths (a checkpoint's part)."""
+        return {"step": float(self.step), "steps_taken": [int(k) for k in self.steps_taken]}
+
+    def restore(self, tuned: dict) -> None:
+        self.step, self.steps_taken = float(tuned["step"]), [int(k) for k in tuned["steps_taken"]]
 
     def start_stage(self, x, beta):
         self.beta = beta
@@ -278,7 +294,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
                  target_ess: float = 0.5, min_moves: int = 5, max_moves: int = 100,
                  final_max_moves: int | None = None,
                  decorrelation: float = 0.1, max_stages: int = 200, names=(), seed: int | None = None,
-                 progress=None) -> SMCResult:
+                 progress=None, checkpoint=None, resume: bool = False) -> SMCResult:
     """Draws of the posterior ``log_p`` (a function of (n, dim) u → (n,) log density, −inf where
     zero) by tempering from ``approximation`` (``draw(rng, n)``, ``log_density(x)``, and
     ``grad_log_density(x)`` for HMC moves); see the module docstring. ``log_p_and_grad``: the
@@ -288,13 +304,27 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
     Metropolis. ``final_max_moves``: the moves allowed at the last stage (β = 1; None: ``max_moves``)
     — there they are the posterior's own Markov chains, so more of them only sample it longer,
     and the particles take longest to forget their start there (the narrowest target, the
-    shortest step). ``progress``: called with one line per stage."""
+    shortest step). ``progress``: called with one line per stage. ``checkpoint``: a ``.npz`` file the state
+    is written to after every stage; with ``resume`` the run goes on from it where it exists
+    (and ends as the run without the stop would have: the generator's state is in it), and a
+    checkpoint of other settings or of another posterior stops with one line
+    (:mod:`._smc_checkpoint`)."""
     names = tuple(names)
     final_max_moves = max_moves if final_max_moves is None else int(final_max_moves)
     if final_max_moves < max_moves:
         raise ValueError(f"tempered_smc: final_max_moves must be at least max_moves ({max_moves}), got {final_max_moves}")
     min_moves = max(1, min(min_moves, max_moves))
-    x = np.asarray(approximation.draw(rng, n_particles), float)
+    settings = {"particles": int(n_particles), "kernel": "random walk" if log_p_and_grad is None else "hmc",
+                "leapfrog_steps": leapfrog_steps, "target_ess": float(target_ess), "min_moves": int(min_moves),
+                "max_moves": int(max_moves), "final_max_moves": int(final_max_moves),
+                "decorrelation": float(decorrelation), "names": list(names)}
+    resumed = checkpoint is not None and resume and Path(checkpoint).is_file()
+    if resumed:
+        saved, record = ckpt.load_checkpoint(checkpoint)
+        ckpt.check_settings(checkpoint, record["settings"], settings)
+        x = np.array(saved["x"], float)
+    else:
+        x = np.asarray(approximation.draw(rng, n_particles), float)
     n, dim = x.shape
     lq = np.asarray(approximation.log_density(x), float)
     if log_p_and_grad is None:
@@ -305,14 +335,33 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         kernel = _Hamiltonian(log_p_and_grad, approximation, dim, leapfrog_steps)
         lp, gp = (np.asarray(a, float) for a in log_p_and_grad(x))
         state = [x, lp, lq, gp]
-    k_q = importance_pareto_k(lp, lq)
+    beta, betas, moves, accept, corr, slowest, steps, modes, trajectory = 0.0, [], [], [], [], [], [], [], []
+    budgets = []
+    labels = np.zeros(n, int)
+    if resumed:
+        # the same program at the same particles gives the same densities: anything else is another
+        # problem. The run goes on with the saved values (a batch of other particles may round a
+        # row's last digit differently), so it ends where the run without the stop ends
+        ckpt.check_densities(checkpoint, "approximation's log density", saved["lq"], lq)
+        ckpt.check_densities(checkpoint, "posterior's log density", saved["lp"], lp)
+        state = [x, np.array(saved["lp"], float), np.array(saved["lq"], float)] + (
+            [np.array(saved["gp"], float)] if log_p_and_grad is not None else [])
+        trace = record["trace"]
+        beta, k_q, labels = float(record["beta"]), float(record["approximation_pareto_k"]), np.array(saved["labels"], int)
+        betas, moves, accept, corr, slowest, steps, modes, trajectory, budgets = (
+            list(trace[k]) for k in ("betas", "moves", "accept", "corr", "slowest", "steps", "modes", "trajectory",
+                                     "budgets"))
+        kernel.restore(record["kernel"])
+        rng.bit_generator.state = record["rng"]
+        if progress is not None:
+            progress(f"[smc] resumed from {checkpoint} after stage {len(betas)} (β = {beta:.4f})")
+    else:
+        k_q = importance_pareto_k(lp, lq)
     floor, floor_90 = correlation_floor(n, dim), correlation_floor(n, dim, 0.9)
-    if progress is not None and floor > decorrelation:
+    if progress is not None and floor > decorrelation and not resumed:
         progress(f"[smc] {n} particles in {dim} coordinates cannot resolve a correlation of {decorrelation} with the "
                  f"start (particles that forgot it show {floor:.2f} at one check in two; "
                  f"about {particles_resolving(decorrelation, dim)} resolve it)")
-    beta, betas, moves, accept, corr, slowest, steps, modes, trajectory = 0.0, [], [], [], [], [], [], [], []
-    budgets = []
     reason = ""
     while beta < 1.0:
         if len(betas) >= max_stages:
@@ -354,6 +403,13 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         if isinstance(kernel, _Hamiltonian):
             steps.append(float(kernel.step))
             trajectory.append(float(np.mean(kernel.steps_taken[taken:])))
+        if checkpoint is not None:
+            ckpt.save_checkpoint(checkpoint, {"x": state[0], "lp": state[1], "lq": state[2], "labels": labels,
+                                              **({"gp": state[3]} if len(state) > 3 else {})}, {
+                "settings": settings, "beta": beta, "approximation_pareto_k": float(k_q),
+                "kernel": kernel.tuned(), "rng": rng.bit_generator.state,
+                "trace": {"betas": betas, "moves": moves, "accept": accept, "corr": corr, "slowest": slowest,
+                          "steps": steps, "modes": modes, "trajectory": trajectory, "budgets": budgets}})
         if progress is not None:
             progress(f"[smc] stage {len(betas)}: β = {beta:.4f}, {m} moves, acceptance {accept[-1]:.2f}, "
                      f"correlation with the stage's start {corr[-1]:.2f}" + (f" within {modes[-1]} modes" if modes[-1] > 1 else ""))
