@@ -77,6 +77,7 @@ from .._x64 import in_float64
 from ..model import RUN_START_STATES
 from ._convergence import chain_diagnostics, rhat_ess_shortfall
 from ._emcee import ConvergenceWarning, SampleResult, _regularised_cov
+from ._npz_file import save_npz_atomically
 
 __all__ = ["NutsResult", "run_nuts"]
 
@@ -586,12 +587,6 @@ def _no_draws(n_chains: int, dim: int) -> dict:
 
 
 # --- resume file -----------------------------------------------------------------------------
-def _save(path, **arrays) -> None:
-    tmp = f"{path}.tmp.npz"
-    np.savez(tmp, **arrays)
-    os.replace(tmp, path)
-
-
 def _load(path) -> dict | None:
     if not os.path.exists(path):
         return None
@@ -642,7 +637,7 @@ def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int
         blocks = _no_draws(n_chains, dim)
         n_blocks_done, elapsed_before, target_now, raised = 0, 0.0, float(target_accept), []
         if backend_path is not None:  # an interruption in the first block keeps the warm-up
-            _save(backend_path, settings=settings, step_size=step_size, imm=imm, n_grad_warm=n_grad_warm,
+            save_npz_atomically(backend_path, settings=settings, step_size=step_size, imm=imm, n_grad_warm=n_grad_warm,
                   last=np.asarray(states.position), n_blocks=0, elapsed_s=time.perf_counter() - t0,
                   target=target_now, raised=np.asarray(raised, dtype=float), **blocks)
     else:
@@ -657,7 +652,7 @@ def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int
 
     def save():
         if backend_path is not None:
-            _save(backend_path, settings=settings, step_size=step_size, imm=imm, n_grad_warm=n_grad_warm,
+            save_npz_atomically(backend_path, settings=settings, step_size=step_size, imm=imm, n_grad_warm=n_grad_warm,
                   last=np.asarray(states.position), n_blocks=n_blocks_done,
                   elapsed_s=elapsed_before + time.perf_counter() - t0, target=target_now,
                   raised=np.asarray(raised, dtype=float), **blocks)

@@ -79,6 +79,10 @@ def _gauss_log(x: np.ndarray, mean: np.ndarray, chol: np.ndarray) -> np.ndarray:
     return -0.5 * np.sum(z**2, axis=0)
 
 
+#: the per-stage lists of a run, kept in its checkpoint by these names
+_TRACE = ("betas", "moves", "accept", "corr", "slowest", "steps", "modes", "trajectory", "budgets")
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class SMCResult(SampleResult):
     """Equally weighted particles of the posterior as one chain: ``chain`` (particles, 1, dim),
@@ -335,8 +339,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         kernel = _Hamiltonian(log_p_and_grad, approximation, dim, leapfrog_steps)
         lp, gp = (np.asarray(a, float) for a in log_p_and_grad(x))
         state = [x, lp, lq, gp]
-    beta, betas, moves, accept, corr, slowest, steps, modes, trajectory = 0.0, [], [], [], [], [], [], [], []
-    budgets = []
+    beta, trace = 0.0, {k: [] for k in _TRACE}
     labels = np.zeros(n, int)
     if resumed:
         # the same program at the same particles gives the same densities: anything else is another
@@ -346,17 +349,16 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
         ckpt.check_densities(checkpoint, "posterior's log density", saved["lp"], lp)
         state = [x, np.array(saved["lp"], float), np.array(saved["lq"], float)] + (
             [np.array(saved["gp"], float)] if log_p_and_grad is not None else [])
-        trace = record["trace"]
+        trace = {k: list(record["trace"][k]) for k in _TRACE}
         beta, k_q, labels = float(record["beta"]), float(record["approximation_pareto_k"]), np.array(saved["labels"], int)
-        betas, moves, accept, corr, slowest, steps, modes, trajectory, budgets = (
-            list(trace[k]) for k in ("betas", "moves", "accept", "corr", "slowest", "steps", "modes", "trajectory",
-                                     "budgets"))
         kernel.restore(record["kernel"])
         rng.bit_generator.state = record["rng"]
         if progress is not None:
-            progress(f"[smc] resumed from {checkpoint} after stage {len(betas)} (β = {beta:.4f})")
+            progress(f"[smc] resumed from {checkpoint} after stage {len(trace['betas'])} (β = {beta:.4f})")
     else:
         k_q = importance_pareto_k(lp, lq)
+    # the per-stage lists, by name in the checkpoint
+    betas, moves, accept, corr, slowest, steps, modes, trajectory, budgets = (trace[k] for k in _TRACE)
     floor, floor_90 = correlation_floor(n, dim), correlation_floor(n, dim, 0.9)
     if progress is not None and floor > decorrelation and not resumed:
         progress(f"[smc] {n} particles in {dim} coordinates cannot resolve a correlation of {decorrelation} with the "
@@ -408,8 +410,7 @@ def tempered_smc(log_p, approximation, rng: np.random.Generator, n_particles: in
                                               **({"gp": state[3]} if len(state) > 3 else {})}, {
                 "settings": settings, "beta": beta, "approximation_pareto_k": float(k_q),
                 "kernel": kernel.tuned(), "rng": rng.bit_generator.state,
-                "trace": {"betas": betas, "moves": moves, "accept": accept, "corr": corr, "slowest": slowest,
-                          "steps": steps, "modes": modes, "trajectory": trajectory, "budgets": budgets}})
+                "trace": trace})
         if progress is not None:
             progress(f"[smc] stage {len(betas)}: β = {beta:.4f}, {m} moves, acceptance {accept[-1]:.2f}, "
                      f"correlation with the stage's start {corr[-1]:.2f}" + (f" within {modes[-1]} modes" if modes[-1] > 1 else ""))

@@ -17,11 +17,11 @@ the file, rather than carrying particles of one posterior into another.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from ._npz_file import save_npz_atomically
 
 #: written into every checkpoint; a file of another layout is refused
 CHECKPOINT_VERSION = 1
@@ -35,18 +35,8 @@ CHECK_ATOL = 1e-6
 
 def save_checkpoint(path: Path | str, arrays: dict, record: dict) -> None:
     """Write ``arrays`` (NumPy arrays) and ``record`` (JSON) to ``path``, replacing it atomically."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    payload = {**{f"a_{k}": np.asarray(v) for k, v in arrays.items()},
-               "record": np.array(json.dumps({"version": CHECKPOINT_VERSION, **record}))}
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, **payload)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    save_npz_atomically(path, **{f"a_{k}": np.asarray(v) for k, v in arrays.items()},
+                        record=np.array(json.dumps({"version": CHECKPOINT_VERSION, **record})))
 
 
 def load_checkpoint(path: Path | str) -> tuple[dict, dict]:
