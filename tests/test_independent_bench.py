@@ -8,8 +8,9 @@ cycloidal files: play ramps then stiffness ramps in one file, the angle in outpu
 with an offset, an encoder step of 19.8″ with white noise below it, the torque from "motor
 current" with noise of its own. Checked here: the simulator is what it says, the data-only
 metrics do not move with noise below the encoder step, ``diagnose`` adds nothing to the clean
-loop and finds the load-dependent and the distributed friction where they are on, and no step
-it keeps leaves the residual larger.
+loop and finds the load-dependent and the distributed friction where they are on (and, with
+``make test-extended``, the play ramps' own torque zero), and no step it keeps leaves the
+residual larger.
 """
 
 import dataclasses
@@ -97,6 +98,7 @@ def test_diagnose_adds_nothing_to_the_clean_independent_loop(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.extended  # 51 s of the pool; make test finds the play ramps' zero on the friction bench
 @pytest.mark.parametrize("seed,rate_Hz,zero_Nm", [pytest.param(0, RATE_HZ, 0.8, id="seed0-25Hz"),
                                                   pytest.param(1, 20.0, -0.6, id="seed1-20Hz", marks=ZOO)])
 def test_diagnose_finds_the_play_ramps_own_torque_zero(tmp_path, seed, rate_Hz, zero_Nm):
