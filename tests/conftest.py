@@ -108,29 +108,33 @@ def _optimised_programs_for_runtime_bound_tests(request, monkeypatch):
         jax.config.update("jax_disable_most_optimizations", before)
 
 
-#: The files that take longest in the two-worker pool (seconds of test time in a clean-clone run
-#: on the idle 2-core machine, the NUTS file beside them), longest first. ``make test`` runs the
+#: The files that take longest in the two-worker pool (seconds of test time, summed from
+#: ``--durations=0`` of a whole pool run on the idle 2-core machine, the NUTS file beside them;
+#: less the trails since moved to ``extended``), longest first. ``make test`` runs the
 #: pool with ``--dist loadfile --no-loadscope-reorder``, so the workers take the files in the
 #: collection's order: these first, then the rest as collected. pytest-xdist's default order (most
 #: tests first) left the few-test, minute-long files (the 200-unit acceptance, the TE-export
 #: diagnose) for the end, where one worker ran them while the other had nothing left (the last
 #: 3 min at 75–86 % of the two cores). Only the order changes; a stale list costs time, not tests.
 LONGEST_FILES = (
-    "test_diagnose.py",  # 612
-    "test_diagnose_friction.py",  # 379
-    "test_batch.py",  # 277
-    "test_te_exports_e2e.py",  # 182
-    "test_accept.py",  # 181
-    "test_fit_statistics.py",  # 156
-    "test_nuts_te_only.py",  # 120
-    "test_model.py",  # 119
-    "test_paper.py",  # 116
-    "test_report.py",  # 115
-    "test_notebooks.py",  # 112
-    "test_measured_validation.py",  # 595 before its MAP-only fit (154 in a clean-clone run after)
-    "test_model_preload.py",  # 78
-    "test_tree_arviz.py",  # 64
-    "test_library_hygiene.py",  # 61
+    "test_independent_bench.py",  # 203
+    "test_accept.py",  # 186
+    "test_batch.py",  # 149
+    "test_fit_statistics.py",  # 142
+    "test_report.py",  # 108
+    "test_model.py",  # 87
+    "test_fit_noise_classes.py",  # 78
+    "test_library_hygiene.py",  # 78
+    "test_diagnose_friction.py",  # 41, and the base model's compiling its two longest trails paid before
+    "test_fit_map.py",  # 67
+    "test_notebooks.py",  # 56
+    "test_diagnose.py",  # 55
+    "test_te_exports_e2e.py",  # 46
+    "test_sample.py",  # 39
+    "test_diagnose_temperature.py",  # 37
+    "test_measured_validation.py",  # 29
+    "test_model_held_gap.py",  # 29
+    "test_model_preload.py",  # 26
 )
 
 
