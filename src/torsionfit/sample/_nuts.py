@@ -636,10 +636,6 @@ def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int
         n_grad_warm = int(np.sum(warm_leapfrog))
         blocks = _no_draws(n_chains, dim)
         n_blocks_done, elapsed_before, target_now, raised = 0, 0.0, float(target_accept), []
-        if backend_path is not None:  # an interruption in the first block keeps the warm-up
-            save_npz_atomically(backend_path, settings=settings, step_size=step_size, imm=imm, n_grad_warm=n_grad_warm,
-                  last=np.asarray(states.position), n_blocks=0, elapsed_s=time.perf_counter() - t0,
-                  target=target_now, raised=np.asarray(raised, dtype=float), **blocks)
     else:
         say(f"resuming {backend_path}: {stored['position'].shape[0]} draws per chain stored")
         step_size, imm = stored["step_size"], stored["imm"]
@@ -652,10 +648,13 @@ def run_nuts(problem, map_result, *, seed: int, n_chains: int = 4, n_warmup: int
 
     def save():
         if backend_path is not None:
-            save_npz_atomically(backend_path, settings=settings, step_size=step_size, imm=imm, n_grad_warm=n_grad_warm,
-                  last=np.asarray(states.position), n_blocks=n_blocks_done,
-                  elapsed_s=elapsed_before + time.perf_counter() - t0, target=target_now,
-                  raised=np.asarray(raised, dtype=float), **blocks)
+            save_npz_atomically(backend_path, settings=settings, step_size=step_size, imm=imm,
+                                n_grad_warm=n_grad_warm, last=np.asarray(states.position), n_blocks=n_blocks_done,
+                                elapsed_s=elapsed_before + time.perf_counter() - t0, target=target_now,
+                                raised=np.asarray(raised, dtype=float), **blocks)
+
+    if stored is None:
+        save()  # an interruption in the first block keeps the warm-up
 
     target = initial_draws
     converged, reason = False, ""
