@@ -30,6 +30,7 @@ EFFECTS = (
     "gap_preload",  # a gap held closed below a preload torque (split-pinwheel designs); not in the catalog
     "gap_hold",  # a gap held by its own friction, crossed beyond ±T_h (a relay; split pinwheels); {centred = false}: about a torque of its own
     "gap_steps",  # a gap taken up in several steps (pins of unequal clearance); not in the catalog
+    "gap_relays",  # a gap crossed in held steps (relays on a grid of switches: a Preisach gap)
     "encoder_ripple",  # outside the catalog: a sub-division error periodic in the measured angle
 )
 

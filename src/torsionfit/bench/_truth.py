@@ -34,7 +34,7 @@ UNIT_SUFFIXES: dict[str, float] = {
 #: model parameter → suffixes it accepts
 ACCEPTED: dict[str, tuple[str, ...]] = {
     **{k: ("Nm_per_rad", "Nm_per_deg", "Nm_per_arcmin") for k in ("stiffness", "k1", "k2", "k3", "creep_stiffness")},
-    **{k: ("Nm",) for k in ("friction_torque", "dahl_torque", "gap_torque", "gap_preload_torque", "gap_hold_torque", "gap_centre_torque", "gap_residual_torque", "preload_lift_torque", "t1", "t2", "torque_offset", "play_torque_offset")},
+    **{k: ("Nm",) for k in ("friction_torque", "dahl_torque", "gap_torque", "gap_preload_torque", "gap_hold_torque", "gap_centre_torque", "gap_residual_torque", "gap_relay_span", "preload_lift_torque", "t1", "t2", "torque_offset", "play_torque_offset")},
     **{k: ("rad", "deg", "arcmin", "arcsec") for k in ("gap", "te_offset", "angle_offset", "elastic_rated_twist")},
     "creep_time": ("s",),
     "gap_lag_time": ("s",),
@@ -51,6 +51,7 @@ ACCEPTED: dict[str, tuple[str, ...]] = {
     "gap_residual_share": ("",),
     "preload_stiffening": ("",),
     "gap_step_logits": ("",),
+    "gap_relay_logits": ("",),
     "drift": ("arcsec_per_s", "arcmin_per_s"),
     "temperature_compliance": ("per_K",),
     "temperature_friction": ("per_K",),

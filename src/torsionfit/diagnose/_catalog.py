@@ -14,7 +14,7 @@ import numpy as np
 from ..fit import temperatures_resolving_friction
 from ..fit._prior import first_look_ramp_time_s
 from ..metrics import gap_crossings
-from ..model import (DahlFriction, HeldGapBacklash, MaxwellSlipFriction, SmoothBacklash, TemperatureDependence as TemperatureTerm,
+from ..model import (DahlFriction, HeldGapBacklash, MaxwellSlipFriction, RelayGapBacklash, SmoothBacklash, TemperatureDependence as TemperatureTerm,
                      GapLag as GapLagTerm)
 from ..model._drift import WARM_UP_FRACTIONS
 from ..model._effects import DEFAULT_FRICTION_ELEMENTS
@@ -835,6 +835,76 @@ class GapCentre(Effect):
         return {**effects, "gap_hold": {**(hold if isinstance(hold, dict) else {}), "centred": False}}
 
 
+#: half-spans of the relays' switches the relay-gap signature tries, as shares of the hysteresis
+#: runs' largest mesh torque (the measured baseline loops: about 1.2, 2.5 and 5 N·m of 25 N·m)
+GAP_RELAY_SPAN_SHARES = (0.05, 0.1, 0.2)
+
+
+class GapRelays(Effect):
+    name = "gap_relays"
+    signature_text = ("held gap crossed in a staircase: steps at repeatable torques beside the held crossing, "
+                      "at other torques going up than coming down")
+    extension_text = ("the gap crossed in held steps: relays whose up- and down-switches lie on a grid about a "
+                      "centre, each with its share of the gap (a Preisach gap)")
+
+    def applicable(self, ctx):
+        # the held gap is the one-relay case; a smooth gap is first held (gap_hold), a preloaded
+        # or stepped gap is another shape
+        return bool(ctx.hysteresis) and isinstance(ctx.map_result.problem.model.backlash, HeldGapBacklash)
+
+    def signature(self, ctx, alpha):
+        # Non-nested alternative (a P test, as the held gap's own): for a grid of relays about the
+        # held gap's centre, the change of the prediction when a share of the gap moves from the
+        # held relay to each relay of the grid — at even shares, the change to the smeared gap and
+        # the derivatives in the K − 1 free logits, which together span every relay's difference
+        # from the held one. Searched over the grid's half-span, the strongest kept, its p-value
+        # Bonferroni-corrected for the search. Tested beyond the curvature's τ³, τ⁵ as the hold is.
+        # Two-sided: shares moved to the grid's relays may make a step earlier or later.
+        problem = ctx.map_result.problem
+        held = problem.model.backlash
+        relays = RelayGapBacklash(initial_state=held.initial_state)
+        alt = eqx.tree_at(lambda mm: mm.backlash, problem.model, relays)
+        values = problem.physics_values(jnp.asarray(ctx.map_result.u))
+        start = np.asarray(values["friction_start"], float) if "friction_start" in values else np.zeros(problem.model.n_hysteresis)
+        centre = float(values["gap_centre_torque"]) if "gap_centre_torque" in values else 0.0
+        hold = float(values["gap_hold_torque"])
+        peak = max(float(np.max(np.abs(r.mesh_torque_Nm))) for r in ctx.hysteresis)
+        curvature = _curvature(ctx)
+        evidence = []
+        for share in GAP_RELAY_SPAN_SHARES:
+            span = share * peak
+            extra = {"gap_centre_torque": centre, "gap_relay_span": span, "gap_relay_logits": np.zeros(relays.n_relays - 1),
+                     "gap_start": np.asarray(values["gap_start"], float) if "gap_start" in values else start}
+            evidence.append(_score_test(
+                ctx, self.name, alt, extra,
+                lambda pred, alt_pred, alt_jac: np.concatenate(
+                    [(alt_pred - pred)[:, None], alt_jac["gap_relay_logits"].reshape(alt_pred.shape[0], -1)], axis=1),
+                f"residual along the change from the held gap to relays whose switches lie on a grid of "
+                f"{relays.n_thresholds} mesh torques over {centre:+.3g} ± {span:.3g} N·m, one share of the gap moved to "
+                "each: the gap crossed in steps at other torques going up than coming down",
+                {"relay_span_Nm": span, "hold_torque_Nm": hold}, nuisance=curvature))
+        best = min(evidence, key=lambda ev: ev.log10_p)
+        return replace(best, log10_p=min(0.0, best.log10_p + float(np.log10(len(evidence)))))
+
+    def start_values(self, evidence):
+        # the fit it extends with its gap on the relay nearest the held one at the span the
+        # signature found: from even shares (the nested start) the gap starts smeared over the grid
+        if "relay_span_Nm" not in evidence.details:
+            return {}
+        relays, span = RelayGapBacklash(), evidence.details["relay_span_Nm"]
+        hold = evidence.details["hold_torque_Nm"]
+        logits = np.zeros(relays.n_relays)
+        logits[relays.nearest_relay(hold / span, -hold / span)] = _HELD_LOGIT
+        return {"gap_relay_span": span, "gap_relay_logits": logits[1:] - logits[0]}
+
+    def extend(self, effects, evidence, ctx):
+        return {**{k: v for k, v in effects.items() if k != "gap_hold"}, self.name: True}
+
+
+#: the held relay's logit at a relay gap's start: 95 % of the gap on it, the rest even
+_HELD_LOGIT = float(np.log(0.95 / 0.05 * (RelayGapBacklash().n_relays - 1)))
+
+
 class TemperatureDependence(Effect):
     name = "temperature_dependence"
     signature_text = "residual that changes with the runs' temperatures: TE level and loop slope move with it"
@@ -896,4 +966,5 @@ CATALOG: tuple[Effect, ...] = (
     GapLag(),
     GapHold(),
     GapCentre(),
+    GapRelays(),
 )

@@ -179,7 +179,11 @@ def fit_with(campaign: Campaign, effects: dict, options: DiagnoseOptions, seed: 
             layout = problem.names(names)
             for p in problem.physics:
                 if p.name in start_values:
-                    found[layout.index(p.name)] = float(inverse(p.constraint, start_values[p.name]))
+                    if p.size == 1:
+                        found[layout.index(p.name)] = float(inverse(p.constraint, start_values[p.name]))
+                    else:  # a vector parameter: its entries name[0], name[1], … in order
+                        i = layout.index(f"{p.name}[0]")
+                        found[i:i + p.size] = np.asarray(inverse(p.constraint, np.asarray(start_values[p.name], float)), float)
             starts = np.stack([starts[0], found])
     result = fit_map(problem, names, n_starts=options.n_starts, seed=seed, warm_starts=starts)
     ctx = fit_context(campaign, effects, result, robust=options.robust_signatures)

@@ -124,11 +124,13 @@ def build_priors(parameters, campaign: Campaign, gap_from_crossings: bool = Fals
         "gap_closure": (log(0.9 / 0.1), 1.5),  # logit-normal around q = 0.9: mostly closed by friction
         "gap_preload_torque": (log(0.1 * rated), 1.5),
         "gap_hold_torque": (log(0.1 * rated), 1.5),
+        "gap_relay_span": (log(0.1 * rated), 1.5),
         "gap_centre_torque": (0.0, 0.05 * rated),
         "gap_start": (0.0, 1.0),  # tanh-normal: g0 anywhere in (−1, 1)
         "gap_residual_share": (log(0.2 / 0.8), 1.5),  # logit-normal around w = 0.2: most of the gap preloaded
         "gap_residual_torque": (log(0.02 * rated), 2.0),
         "gap_step_logits": (0.0, 1.5),  # the steps' shares: even a priori, any one up to ~e^3 times another
+        "gap_relay_logits": (0.0, 1.5),  # the relays' shares, as the steps'
         "series_share": (log(0.2 / 0.8), 1.5),  # logit-normal around φ = 0.2
         "preload_stiffening": (0.0, 1.5),  # logit-normal around s = 0.5: a second path as stiff as the first
         "preload_lift_torque": (log(0.1 * rated), 1.5),
@@ -164,6 +166,11 @@ def build_priors(parameters, campaign: Campaign, gap_from_crossings: bool = Fals
         crossings = gap_crossings(campaign.hysteresis_runs)
         if math.isfinite(crossings.centre_Nm):
             table["gap_centre_torque"] = (crossings.centre_Nm, crossings.span_Nm)
+        if any(p.name == "gap_relay_span" for p in parameters) and math.isfinite(crossings.half_width_Nm) \
+                and crossings.half_width_Nm > 0:
+            # a relay gap's switches spread about as far as the data's crossings lie apart
+            # (friction shifts them further, hence the width)
+            table["gap_relay_span"] = (log(crossings.half_width_Nm), 1.0)
     if gap_from_crossings:
         table.update(gap_crossing_priors(campaign))
     loop = first_look_loop(campaign) if any(p.name in ("gap", "friction_torque") for p in parameters) else None

@@ -8,6 +8,7 @@ from ._backlash import (
     HeldGapBacklash as HeldGapBacklash,
     NoBacklash as NoBacklash,
     PreloadedBacklash as PreloadedBacklash,
+    RelayGapBacklash as RelayGapBacklash,
     ResidualPlayBacklash as ResidualPlayBacklash,
     SmoothBacklash as SmoothBacklash,
     SteppedBacklash as SteppedBacklash,

@@ -5,6 +5,7 @@ import abc
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ._parameter import Parameter
 from ._play import play_scan
@@ -246,6 +247,97 @@ class HeldGapBacklash(AbstractBacklash):
 
     def run_twist(self, params, mesh_torque_Nm, method: ScanMethod = "auto", initial_state=None):
         return 0.5 * params["gap"] * self.state(params, mesh_torque_Nm, method, initial_state)
+
+
+#: switches of a relay gap when it does not say: odd, so that one sits at the grid's centre and
+#: the centred gap (the relay switching there both ways) is a case of the model
+DEFAULT_GAP_THRESHOLDS = 7
+
+
+class RelayGapBacklash(AbstractBacklash):
+    """A gap crossed in held steps (a Preisach gap): shares ``w_k`` of the gap β, each a relay
+    that crosses its share once the mesh torque rises past its up-switch ``u_k`` and back once
+    it falls past its down-switch ``d_k ≤ u_k``. The switches lie on a grid of ``n_thresholds``
+    mesh torques spread evenly over ``c ± S`` (a centre c and a half-span S, both fitted); every
+    pair ``u_k ≥ d_k`` of the grid is a relay (``d_k = u_k``: a step crossed at the same torque
+    both ways). Each relay is :class:`HeldGapBacklash`'s smooth play operator, of width τ_β:
+
+        ``g_k ← clamp(g_k, tanh((τ_m − u_k)/τ_β), tanh((τ_m − d_k)/τ_β))``,  ``θ_g = (β/2)·Σ_k w_k·g_k``
+
+    with the shares a softmax of free logits (the first relay's fixed at 0). The measured
+    baseline cycloidal loops cross their gap in a staircase whose steps sit at repeatable
+    torques and differ between loading and unloading (several pins of a printed pinwheel, each
+    held by its own friction); one held relay (:class:`HeldGapBacklash`) draws the largest step
+    only. One relay ``(c + S·a, c − S·a)`` of the grid is :class:`HeldGapBacklash` centred on c
+    and held S·a. ``initial_state`` g0 (or the run's
+    start) is every relay's state at the first sample, clamped to its band there."""
+
+    hysteretic = True
+    n_thresholds: int = eqx.field(static=True, default=DEFAULT_GAP_THRESHOLDS)
+    initial_state: float = eqx.field(static=True, default=0.0)
+
+    def __check_init__(self):
+        if not (isinstance(self.n_thresholds, int) and self.n_thresholds >= 2):
+            raise ValueError(f"RelayGapBacklash: n_thresholds must be an integer ≥ 2, got {self.n_thresholds!r}")
+
+    @property
+    def n_relays(self) -> int:
+        return self.n_thresholds * (self.n_thresholds + 1) // 2
+
+    def parameters(self):
+        return (
+            Parameter("gap", "positive", "rad", "geometric gap β (lost motion of the mesh)"),
+            Parameter("gap_torque", "positive", "N·m", "mesh torque τ_β over which each relay of the gap switches"),
+            Parameter("gap_centre_torque", "real", "N·m", "mesh torque c the relays' switches are spread about"),
+            Parameter("gap_relay_span", "positive", "N·m", "half-span S of the relays' switches about c"),
+            Parameter("gap_relay_logits", "real", "1", "log shares of the gap's relays 2…K against the first",
+                      size=self.n_relays - 1),
+        )
+
+    def unit_switches(self) -> tuple[np.ndarray, np.ndarray]:
+        """(up, down) switch of each relay on the grid over [−1, 1], in the order of the shares:
+        by up-switch, then down-switch."""
+        n = self.n_thresholds
+        grid = (2 * np.arange(n) - (n - 1)) / (n - 1)
+        up, down = zip(*[(grid[i], grid[j]) for i in range(n) for j in range(i + 1)])
+        return np.array(up), np.array(down)
+
+    def switches_Nm(self, params):
+        """(up-switch u_k, down-switch d_k) of each relay (N·m of mesh torque)."""
+        up, down = self.unit_switches()
+        c, span = params["gap_centre_torque"], params["gap_relay_span"]
+        return c + span * up, c + span * down
+
+    def nearest_relay(self, up: float, down: float) -> int:
+        """Index of the relay whose switches on the unit grid lie nearest (up, down)."""
+        grid_up, grid_down = self.unit_switches()
+        return int(np.argmin((grid_up - up) ** 2 + (grid_down - down) ** 2))
+
+    def shares(self, params):
+        logits = jnp.concatenate([jnp.zeros(1), jnp.atleast_1d(params["gap_relay_logits"])])
+        return jax.nn.softmax(logits)
+
+    def __call__(self, params, mesh_torque_Nm):
+        # history aside: each relay at the middle of its band
+        up, down = self.switches_Nm(params)
+        steps = jnp.tanh((mesh_torque_Nm[..., None] - 0.5 * (up + down)) / params["gap_torque"])
+        return 0.5 * params["gap"] * steps @ self.shares(params)
+
+    def band(self, params, mesh_torque_Nm):
+        """(lower, upper) bound of each relay's state, shape (samples, relays)."""
+        up, down = self.switches_Nm(params)
+        tau = jnp.asarray(mesh_torque_Nm)[:, None]
+        return jnp.tanh((tau - up) / params["gap_torque"]), jnp.tanh((tau - down) / params["gap_torque"])
+
+    def state(self, params, mesh_torque_Nm, method: ScanMethod = "auto", initial_state=None):
+        """Each relay's state per sample, shape (samples, relays), in [−1, 1]."""
+        lo, hi = self.band(params, mesh_torque_Nm)
+        g0 = jnp.clip(jnp.asarray(self.initial_state if initial_state is None else initial_state, dtype=lo.dtype),
+                      lo[0], hi[0])
+        return jnp.concatenate([g0[None], play_scan(lo[1:], hi[1:], g0, method)])
+
+    def run_twist(self, params, mesh_torque_Nm, method: ScanMethod = "auto", initial_state=None):
+        return 0.5 * params["gap"] * self.state(params, mesh_torque_Nm, method, initial_state) @ self.shares(params)
 
 
 class NoBacklash(AbstractBacklash):

@@ -1,8 +1,8 @@
 """Switching model extensions on by name (the effects catalog's names, DESIGN §3)."""
 
 from .._errors import InputError
-from ._backlash import (DEFAULT_GAP_STEPS, ClosedGapBacklash, FrictionClosureBacklash, HeldGapBacklash, PreloadedBacklash, ResidualPlayBacklash,
-                        SmoothBacklash, SteppedBacklash)
+from ._backlash import (DEFAULT_GAP_STEPS, DEFAULT_GAP_THRESHOLDS, ClosedGapBacklash, FrictionClosureBacklash, HeldGapBacklash, PreloadedBacklash,
+                        RelayGapBacklash, ResidualPlayBacklash, SmoothBacklash, SteppedBacklash)
 from ._campaign_model import CampaignModel
 from ._compliance import AsymmetricCompliance, LinearCompliance, PowerLawCompliance, PreloadedCompliance, ThreeSegmentCompliance
 from ._creep import Creep
@@ -20,7 +20,7 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     """The base model plus the extensions named in ``effects`` (the catalog names of
     DESIGN §3: ``stiffness_nonlinearity``, ``rate_dependence``, ``kinematic_error``,
     ``speed_dependence``, ``asymmetry``, ``thermal_drift``, ``torque_offset``, ``play_torque_offset``,
-    ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``, ``gap_preload``, ``gap_hold``, ``gap_lag``,
+    ``load_dependent_friction``, ``distributed_friction``, ``temperature_dependence``, ``gap_preload``, ``gap_hold``, ``gap_relays``, ``gap_lag``,
     ``series_compliance``, ``preload_stiffening``), as a bench file's ``[effects]``
     table or a user's switches give them. ``fitted``: the model a fit estimates, whose gap
     is :class:`FrictionClosureBacklash` when no run is a hysteresis run (the same curve, with the
@@ -68,11 +68,14 @@ def model_with_effects(run_kinds, effects: dict, rated_torque_Nm: float, scan="a
     hold = _gap_hold(effects.get("gap_hold", False))
     if hold is not None and (closed or preload is not None or steps is not None):
         raise InputError("[effects].gap_hold: needs a hysteresis run and cannot be combined with gap_preload or gap_steps")
+    relays = _gap_relays(effects.get("gap_relays", False))
+    if relays is not None and (closed or preload is not None or steps is not None or hold is not None):
+        raise InputError("[effects].gap_relays: needs a hysteresis run and cannot be combined with gap_preload, gap_steps or gap_hold")
     if closed:
         loaded = te_loads_Nm is not None and len(te_loads_Nm) > 0 and min(abs(float(t)) for t in te_loads_Nm) > 0
         backlash = ClosedGapBacklash() if loaded else FrictionClosureBacklash()
     else:
-        backlash = next((b for b in (preload, steps, hold) if b is not None), SmoothBacklash())
+        backlash = next((b for b in (preload, steps, hold, relays) if b is not None), SmoothBacklash())
     return CampaignModel(
         backlash=backlash,
         temperature=_temperature(effects.get("temperature_dependence", False)),
@@ -138,6 +141,20 @@ def _gap_steps(value):
             and isinstance(span, (int, float)) and not isinstance(span, bool) and span > 0):
         raise InputError(f"[effects].gap_steps: expected {{steps = N, span_Nm = S}} with N ≥ 2 (default {DEFAULT_GAP_STEPS}) and S > 0 N·m, got {value!r}")
     return SteppedBacklash(n_steps=steps, span_Nm=float(span))
+
+
+def _gap_relays(value):
+    """``gap_relays``: false, true or {thresholds = G} (:class:`RelayGapBacklash`: a gap crossed in
+    held steps whose up- and down-switches lie on G mesh torques spread over a fitted span about
+    a fitted centre; G defaults to 7)."""
+    if value is False or value is None:
+        return None
+    n = value.get("thresholds", DEFAULT_GAP_THRESHOLDS) if isinstance(value, dict) else DEFAULT_GAP_THRESHOLDS
+    if not (value is True or (isinstance(value, dict) and set(value) <= {"thresholds"}
+                              and isinstance(n, int) and not isinstance(n, bool) and n >= 2)):
+        raise InputError(f"[effects].gap_relays: expected true, false or {{thresholds = G}} with G ≥ 2 (default "
+                         f"{DEFAULT_GAP_THRESHOLDS}), got {value!r}")
+    return RelayGapBacklash(n_thresholds=n)
 
 
 #: Maxwell-slip elements of ``distributed_friction = true``

@@ -191,8 +191,13 @@ def _without_nested(effects: dict, model=None) -> dict:
     """``effects`` without the parts that vanish at zero: :data:`NESTED_AT_ZERO` effects, the
     lag of a load-dependent friction level (``{lag = true}`` → ``true``), and a gap in an odd
     number of steps when ``model`` has it (:func:`_middle_step`: the plain gap is its case of
-    every share on the step at zero torque)."""
+    every share on the step at zero torque), and a relay gap in place of one held gap centred
+    on a torque of its own (:func:`gap_on_the_held_relay`: one relay of the grid is a held
+    gap)."""
     out = {k: v for k, v in effects.items() if not (k in NESTED_AT_ZERO and v)}
+    if out.get("gap_relays"):
+        out.pop("gap_relays")
+        out["gap_hold"] = {"centred": False}
     if isinstance(out.get("load_dependent_friction"), dict) and out["load_dependent_friction"].get("lag"):
         out["load_dependent_friction"] = True
     if model is not None and _middle_step(model) is not None:
@@ -224,21 +229,37 @@ def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
     start = nested_start(problem, names, inner.u, inner_problem.names(names))
     if "gap_steps" in nested:
         start = gap_on_the_middle_step(problem, names, start)
+    if "gap_relays" in nested:
+        # two starts: the grid at its prior span with the relay nearest the held gap, and the
+        # grid narrowed until its innermost symmetric relay (±a of the unit grid) is the held
+        # gap exactly — on a measured baseline loop held ±0.1 N·m the first alone ended 79″
+        # above the held gap's fit in sample
+        hold = float(inner_problem.physics_values(jnp.asarray(inner.u))["gap_hold_torque"])
+        up = problem.model.backlash.unit_switches()[0]
+        exact = moved_start(problem, start, {"gap_relay_span": hold / float(np.min(up[up > 0]))})
+        return np.stack([gap_on_the_held_relay(problem, names, s, hold) for s in (start, exact)])
     return start[None, :]
 
 
-def gap_on_the_middle_step(problem, run_names, start: np.ndarray) -> np.ndarray:
-    """``start`` (a start of ``problem``, whose gap is taken up in an odd number of steps) with
-    the plain gap's shape: the middle step's logit three prior sds up (≈ 94 % of the gap at zero
-    torque with seven steps), the others at their prior centre. From even shares alone the
-    stepped fit of measured baseline loops stopped below the plain gap's optimum in sample,
-    though it contains it (docs/validation.md)."""
-    middle = _middle_step(problem.model)
-    if middle is None:
-        raise ValueError("gap_on_the_middle_step: the problem's gap is not taken up in an odd number of steps")
+#: share of a relay gap on the held gap's relay at the start of its fit (:func:`gap_on_the_held_relay`)
+HELD_SHARE_AT_START = 0.95
+
+
+def gap_on_the_held_relay(problem, run_names, start: np.ndarray, hold_Nm: float) -> np.ndarray:
+    """``start`` (a start of ``problem``, whose gap is a :class:`~torsionfit.model.RelayGapBacklash`
+    centred at the held gap's centre) with about the held gap's shape: 95 % of the gap
+    (:data:`HELD_SHARE_AT_START`, the rest shared evenly) on the relay of the grid nearest
+    ``c ± hold_Nm`` at the start's span. Not the held gap itself, whose switches need not lie on
+    the grid; from even shares, though, the fit starts from a gap smeared over the whole grid."""
+    relays = problem.model.backlash
+    names = problem.names(run_names)
+    span = float(problem.physics_values(np.asarray(start[:problem.n_nonlinear], float))["gap_relay_span"])
+    k = relays.nearest_relay(hold_Nm / span, -hold_Nm / span)
+    first = names.index("gap_relay_logits[0]")
+    logits = np.zeros(relays.n_relays)
+    logits[k] = math.log(HELD_SHARE_AT_START / (1.0 - HELD_SHARE_AT_START) * (relays.n_relays - 1))
     start = np.array(start, float)
-    j = problem.names(run_names).index(f"gap_step_logits[{middle - 1}]")
-    start[j] = float(problem.prior_mean[j]) + 3.0 * float(problem.prior_sd[j])
+    start[first:first + relays.n_relays - 1] = logits[1:] - logits[0]  # the first relay's logit is fixed at 0
     return start
 
 
