@@ -16,8 +16,8 @@ diagnosis is 5–15 s once compiled. Every effect's second seed runs only with
 ``TORSIONFIT_DIAGNOSE_ZOO_CASES=1`` (the suite's time budget); the clean campaign runs both.
 ``make test`` finds the play ramps' torque zero and adds nothing to the clean campaign; the
 load-dependent level and the slip elements, each alone (``make test`` finds both together on
-the independent simulator's loop), the gap's damped crossing and its hold (each refitted as the other's rival), the level's lag and memory, the held gap's centre and
-the nested-effect check are ``extended`` (``make test-extended``; the zoo's table and
+the independent simulator's loop), the gap's damped crossing and its hold (each refitted as the other's rival), the level's lag and memory, the held gap's centre, the
+gap crossed in held steps (from a declared held gap) and the nested-effect check are ``extended`` (``make test-extended``; the zoo's table and
 the measured-loop validation use them too).
 """
 
