@@ -893,16 +893,13 @@ class GapRelays(Effect):
             return {}
         relays, span = RelayGapBacklash(), evidence.details["relay_span_Nm"]
         hold = evidence.details["hold_torque_Nm"]
-        logits = np.zeros(relays.n_relays)
-        logits[relays.nearest_relay(hold / span, -hold / span)] = _HELD_LOGIT
-        return {"gap_relay_span": span, "gap_relay_logits": logits[1:] - logits[0]}
+        return {"gap_relay_span": span,
+                "gap_relay_logits": relays.logits_on(relays.nearest_relay(hold / span, -hold / span))}
 
     def extend(self, effects, evidence, ctx):
         return {**{k: v for k, v in effects.items() if k != "gap_hold"}, self.name: True}
 
 
-#: the held relay's logit at a relay gap's start: 95 % of the gap on it, the rest even
-_HELD_LOGIT = float(np.log(0.95 / 0.05 * (RelayGapBacklash().n_relays - 1)))
 
 
 class TemperatureDependence(Effect):

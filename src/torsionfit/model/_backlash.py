@@ -317,6 +317,14 @@ class RelayGapBacklash(AbstractBacklash):
         logits = jnp.concatenate([jnp.zeros(1), jnp.atleast_1d(params["gap_relay_logits"])])
         return jax.nn.softmax(logits)
 
+    def logits_on(self, relay: int, share: float = 0.95) -> np.ndarray:
+        """The free logits (``gap_relay_logits``) that put ``share`` of the gap on ``relay`` and
+        the rest evenly on the others: a fit's start from one held relay (by default 95 % on it,
+        the start of the fits and refits that extend a held gap)."""
+        logits = np.zeros(self.n_relays)
+        logits[relay] = np.log(share / (1.0 - share) * (self.n_relays - 1))
+        return logits[1:] - logits[0]  # the first relay's logit is fixed at 0
+
     def __call__(self, params, mesh_torque_Nm):
         # history aside: each relay at the middle of its band
         up, down = self.switches_Nm(params)

@@ -256,25 +256,18 @@ def gap_on_the_middle_step(problem, run_names, start: np.ndarray) -> np.ndarray:
     return start
 
 
-#: share of a relay gap on the held gap's relay at the start of its fit (:func:`gap_on_the_held_relay`)
-HELD_SHARE_AT_START = 0.95
-
-
 def gap_on_the_held_relay(problem, run_names, start: np.ndarray, hold_Nm: float) -> np.ndarray:
     """``start`` (a start of ``problem``, whose gap is a :class:`~torsionfit.model.RelayGapBacklash`
     centred at the held gap's centre) with about the held gap's shape: 95 % of the gap
-    (:data:`HELD_SHARE_AT_START`, the rest shared evenly) on the relay of the grid nearest
+    (:meth:`~torsionfit.model.RelayGapBacklash.logits_on`, the rest shared evenly) on the relay of the grid nearest
     ``c ± hold_Nm`` at the start's span. Not the held gap itself, whose switches need not lie on
     the grid; from even shares, though, the fit starts from a gap smeared over the whole grid."""
     relays = problem.model.backlash
     names = problem.names(run_names)
     span = float(problem.physics_values(np.asarray(start[:problem.n_nonlinear], float))["gap_relay_span"])
-    k = relays.nearest_relay(hold_Nm / span, -hold_Nm / span)
     first = names.index("gap_relay_logits[0]")
-    logits = np.zeros(relays.n_relays)
-    logits[k] = math.log(HELD_SHARE_AT_START / (1.0 - HELD_SHARE_AT_START) * (relays.n_relays - 1))
     start = np.array(start, float)
-    start[first:first + relays.n_relays - 1] = logits[1:] - logits[0]  # the first relay's logit is fixed at 0
+    start[first:first + relays.n_relays - 1] = relays.logits_on(relays.nearest_relay(hold_Nm / span, -hold_Nm / span))
     return start
 
 
