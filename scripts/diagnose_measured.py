@@ -24,7 +24,7 @@ import jax
 
 from torsionfit._cache import enable_compilation_cache
 from torsionfit.batch import executor
-from torsionfit.diagnose import DiagnoseOptions, diagnose, summary_text, write_diagnosis
+from torsionfit.diagnose import CATALOG, DiagnoseOptions, GapRelays, diagnose, summary_text, write_diagnosis
 from torsionfit.fit import NoiseOptions
 from torsionfit.io import decimate, load_campaign
 
@@ -95,7 +95,7 @@ def diagnose_unit(unit: str, args) -> tuple[list[str], dict, str]:
                               max_candidates_first_step=args.max_candidates_first_step,
                               max_candidates_per_step=args.max_candidates_per_step,
                               robust_signatures=not args.least_squares_signatures, backward=not args.no_backward,
-                              swap=not args.no_swap)
+                              swap=not args.no_swap, catalog=catalog(args))
     result = diagnose(campaign, options, seed=args.seed, progress=say)
     doc = write_diagnosis(result, campaign, args.output / unit)
     seconds = time.perf_counter() - t0
@@ -111,9 +111,17 @@ def diagnose_unit(unit: str, args) -> tuple[list[str], dict, str]:
     return entry["rows"], entry, summary_text(doc)
 
 
+def catalog(args) -> tuple:
+    """The effects catalog: the default one, its relay gap tested from the smooth gap too under
+    ``--relays-from-smooth-gap``."""
+    if not args.relays_from_smooth_gap:
+        return CATALOG
+    return tuple(GapRelays(from_smooth_gap=True) if isinstance(e, GapRelays) else e for e in CATALOG)
+
+
 #: the options that decide a trail (recorded with each unit's entry)
 SETTINGS = ("decimate", "seed", "ar1", "student_t", "candidates_per_step", "max_candidates_first_step",
-            "max_candidates_per_step", "least_squares_signatures", "no_backward", "no_swap")
+            "max_candidates_per_step", "least_squares_signatures", "no_backward", "no_swap", "relays_from_smooth_gap")
 
 
 def run_settings(args) -> dict:
@@ -161,6 +169,7 @@ def header(args) -> list[str]:
         + (", no backward checks (`--no-backward`)" if args.no_backward else ", backward checks: each kept effect but the "
            "last refitted out of the final model, a redundant one dropped")
         + ("" if args.no_backward else ", no swaps (`--no-swap`)" if args.no_swap else ", swaps at the limit of effects")
+        + (", the relay gap tested from the smooth gap too (`--relays-from-smooth-gap`)" if args.relays_from_smooth_gap else "")
         + "), "
         f"`scripts/diagnose_measured.py`, seed {args.seed}.",
         "",
@@ -211,6 +220,9 @@ def main(argv=None) -> int:
     parser.add_argument("--no-swap", action="store_true",
                         help="no swaps (default: a trail at its limit of effects with a signature left refits its "
                              "weakest effect out and the candidate in its place, kept when it earns its keep)")
+    parser.add_argument("--relays-from-smooth-gap", action="store_true",
+                        help="test the gap crossed in held steps (gap_relays) on the smooth gap too, not only once a held "
+                             "gap is in (where a held gap earns too little to be kept, the default trail never reaches them)")
     parser.add_argument("--append", action="store_true",
                         help="re-run the units named and keep the other units' rows of the table already in --output")
     parser.add_argument("--refit-each", action="store_true",

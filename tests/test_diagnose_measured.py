@@ -18,7 +18,7 @@ _spec.loader.exec_module(dm)
 
 def _args(output: Path) -> argparse.Namespace:
     return argparse.Namespace(output=output, decimate=16, seed=0, ar1="off", student_t=None,
-                              least_squares_signatures=False, no_backward=True, no_swap=False)
+                              least_squares_signatures=False, no_backward=True, no_swap=False, relays_from_smooth_gap=False)
 
 
 def _rows(unit: str, rmse: int) -> list[str]:
@@ -56,3 +56,16 @@ def test_a_kept_unit_without_rows_anywhere_stops_with_one_line(tmp_path):
 
 def test_no_table_yet_keeps_nothing(tmp_path):
     assert dm.kept_units(tmp_path, ["a-unit"]) == ({}, {})
+
+
+def test_relays_from_the_smooth_gap_is_an_opt_in_of_the_catalog(tmp_path):
+    """``--relays-from-smooth-gap`` swaps the relay gap for one tested on the smooth gap too; the
+    rest of the catalog, and the default run's catalog, unchanged."""
+    from torsionfit.diagnose import CATALOG, GapRelays
+
+    assert dm.catalog(_args(tmp_path)) is CATALOG
+    opted = dm.catalog(argparse.Namespace(**{**vars(_args(tmp_path)), "relays_from_smooth_gap": True}))
+    assert [e.name for e in opted] == [e.name for e in CATALOG]
+    relays = [e for e in opted if isinstance(e, GapRelays)]
+    assert len(relays) == 1 and relays[0].from_smooth_gap
+    assert not next(e for e in CATALOG if isinstance(e, GapRelays)).from_smooth_gap

@@ -344,6 +344,61 @@ def test_a_step_keeps_the_candidate_that_earns_the_most(monkeypatch):
     assert [s.effect for s in d.steps] == ["strong", "fourth"]
 
 
+def test_an_effect_that_contains_another_is_kept_only_when_it_earns_its_keep_over_it(monkeypatch):
+    """Where a step's refits of an effect and of one it contains (``Effect.nests``: the relays
+    contain the held gap) both earn their keep, the larger is kept only when it earns its keep
+    over the smaller; where the smaller does not earn its keep, the larger is kept as usual.
+    Stand-in fits and signatures: the rule alone."""
+    from types import SimpleNamespace
+
+    from torsionfit.diagnose import Effect, _loop
+    from torsionfit.diagnose._selection import Comparison
+    from torsionfit.diagnose._signature import Evidence
+
+    elpd = {"held": 60.0, "relays": 65.0}  # each fit's ELPD over the base model; se 1
+
+    class Stand(Effect):
+        def __init__(self, name, nests=()):
+            self.name, self.nests = name, nests
+
+        def signature(self, ctx, alpha):
+            return Evidence(self.name, 0.0, 1, -20.0, 0.1, "")
+
+        def extend(self, effects, evidence, ctx):
+            return {**effects, self.name: True}
+
+    catalog = (Stand("relays", nests=("held",)), Stand("held"))
+
+    def fit_with(campaign, effects, options, seed, warm=None, start_values=None):
+        return SimpleNamespace(effects=dict(effects), context=SimpleNamespace(runs=()), score=tuple(effects),
+                               rmse_arcsec=1.0, max_abs_arcsec=1.0, rmse_per_run={})
+
+    def compare(before, after):
+        return Comparison(sum(elpd[n] for n in after) - sum(elpd[n] for n in before), 1.0, "stand-in", "")
+
+    monkeypatch.setattr(_loop, "fit_with", fit_with)
+    monkeypatch.setattr(_loop, "compare", compare)
+    monkeypatch.setattr(_loop, "_signatures", lambda ctx, options, added: [] if added else [
+        (e, e.signature(ctx, options.alpha)) for e in options.catalog])
+    monkeypatch.setattr(_loop, "noise_rmse_arcsec", lambda ctx: 1.0)
+    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added: [])
+    monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
+    options = _loop.DiagnoseOptions(catalog=catalog, backward=False)
+    # the relays gain 5 over the held gap (below the 10 a step must gain): the held gap is kept
+    d = _loop.diagnose(SimpleNamespace(), options, seed=0)
+    assert [s.effect for s in d.steps] == ["held"] and d.final.effects == {"held": True}
+    assert [(s.effect, s.kept) for s in d.rejected] == [("relays", False)]
+    assert d.steps[0].delta_elpd == 60.0
+    # they gain 40 over it: the relays are kept
+    elpd["relays"] = 100.0
+    d = _loop.diagnose(SimpleNamespace(), options, seed=0)
+    assert [s.effect for s in d.steps] == ["relays"]
+    # the held gap alone does not earn its keep: the relays are kept, whatever they gain over it
+    elpd.update(held=5.0, relays=12.0)
+    d = _loop.diagnose(SimpleNamespace(), options, seed=0)
+    assert [s.effect for s in d.steps] == ["relays"]
+
+
 def _robust_view(name, residual, design, physics=None):
     """A TE-like view with its noise read robustly as well (median increments), as
     ``fit_context(robust=True)`` makes; ``physics``: the fit's physics directions (none: (N, 0))."""

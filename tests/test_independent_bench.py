@@ -97,6 +97,20 @@ def test_diagnose_adds_nothing_to_the_clean_independent_loop(tmp_path):
     assert params["friction_torque"] == pytest.approx(reducer.element_level_Nm[0], rel=0.05)
 
 
+@pytest.mark.extended
+def test_relays_tried_from_the_smooth_gap_take_the_clean_loops_smoothstep(tmp_path):
+    """Why the relay gap is tested only once a held gap is in: tried from the smooth gap too
+    (``GapRelays(from_smooth_gap=True)``), its 28 shares draw the smoothstep crossing the tanh
+    lacks, and the trail adds them to this clean loop, which has no staircase."""
+    from torsionfit.diagnose import CATALOG, GapRelays
+
+    catalog = tuple(GapRelays(from_smooth_gap=True) if isinstance(e, GapRelays) else e for e in CATALOG)
+    reducer = bench.clean_torque_side_reducer()
+    result = diagnose(_campaign(tmp_path, reducer, "clean"),
+                      DiagnoseOptions(noise=NoiseOptions(ar1=False), catalog=catalog), seed=0)
+    assert "gap_relays" in [s.effect for s in result.steps], _summary(result)
+
+
 @pytest.mark.slow
 @pytest.mark.extended  # 51 s of the pool; make test finds the play ramps' zero on the friction bench
 @pytest.mark.parametrize("seed,rate_Hz,zero_Nm", [pytest.param(0, RATE_HZ, 0.8, id="seed0-25Hz"),

@@ -1,6 +1,6 @@
 """Closing the loop: the effects catalog, residual signatures, and the diagnosis (DESIGN §3)."""
 
-from ._catalog import CATALOG as CATALOG, Effect as Effect
+from ._catalog import CATALOG as CATALOG, Effect as Effect, GapRelays as GapRelays
 from ._context import FitContext as FitContext, RunView as RunView, fit_context as fit_context
 from ._loop import (
     Diagnosis as Diagnosis,

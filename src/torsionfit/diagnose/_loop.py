@@ -319,6 +319,29 @@ def _best_extension(campaign: Campaign, options: DiagnoseOptions, seed: int, cur
             say(f"  {effect.name} rejected: ΔELPD {c.delta:.1f} ± {c.se:.1f} ({c.criterion}), "
                 f"RMSE {current.rmse_arcsec:.3g}″ → {trial.rmse_arcsec:.3g}″")
         rejected.append(replace(step, kept=False))
+    return _simplest_sufficient(options, accepted, rejected, say)
+
+
+def _simplest_sufficient(options: DiagnoseOptions, accepted: Step | None, rejected: list, say) -> Step | None:
+    """``accepted``, or an effect it contains (:attr:`Effect.nests`) refitted in the same step
+    and earning its keep there, when ``accepted`` does not earn its keep over it: the relays
+    contain the held gap, and on a gap held in one crossing they reach its fit with shares the
+    data do not need."""
+    if accepted is None:
+        return None
+    by_name = {e.name: e for e in options.catalog}
+    nested = by_name[accepted.effect].nests if accepted.effect in by_name else ()
+    for i, step in enumerate(rejected):
+        if step.effect not in nested or step.before is not accepted.before or not options.earns_keep(
+                step.delta_elpd, step.delta_elpd_se, step.before.rmse_arcsec, step.after.rmse_arcsec):
+            continue
+        c = compare(step.after.score, accepted.after.score)
+        if options.earns_keep(c.delta, c.se, step.after.rmse_arcsec, accepted.after.rmse_arcsec):
+            continue
+        say(f"  {step.effect} kept in place of {accepted.effect}, which contains it and earns ΔELPD "
+            f"{c.delta:.1f} ± {c.se:.1f} over it, not its keep")
+        rejected[i] = replace(accepted, kept=False)
+        return replace(step, kept=True)
     return accepted
 
 
