@@ -1,14 +1,15 @@
 """report/_physical.py: a fitted Dahl element whose friction turns faster than the applied
 torque after a reversal (the twist runs back: a hook) is named, against the forward model; so
-is a compliance whose soft first segment shares the gap's crossing."""
+is a compliance whose soft first segment shares the gap's crossing, and a relay gap whose shares
+switch in the loaded flanks or never."""
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from torsionfit.model import DahlFriction, LinearCompliance, MaxwellSlipFriction, ThreeSegmentCompliance
+from torsionfit.model import DahlFriction, LinearCompliance, MaxwellSlipFriction, RelayGapBacklash, ThreeSegmentCompliance
 from torsionfit.report._physical import (dahl_hook_note, dahl_hook_ratio, dahl_hook_rise_Nm, gap_segment_note,
-                                         soft_segment_lost_motion_rad)
+                                         relay_gap_note, relay_gap_shares, soft_segment_lost_motion_rad)
 
 
 def _mesh_after_reversal(friction, params, peak_Nm=25.0, step_Nm=0.05):
@@ -85,3 +86,45 @@ def test_a_gap_shared_with_a_soft_first_segment_is_named_with_their_sum():
     assert gap_segment_note(compliance, {**GAP_IN_SEGMENT, "k1": 0.6 * GAP_IN_SEGMENT["k2"]}) == ""
     assert gap_segment_note(compliance, {**GAP_IN_SEGMENT, "gap": 0.06}) == ""
     assert gap_segment_note(LinearCompliance(), {"stiffness": 971.3, "gap": 0.004366}) == ""
+
+
+def _relay_params(centre_Nm, span_Nm, weights: dict):
+    """A relay gap of 1° whose shares are ``weights`` (relay index → weight; the rest e^−12)."""
+    relays = RelayGapBacklash()
+    logits = np.full(relays.n_relays, -12.0)
+    for k, w in weights.items():
+        logits[k] = np.log(w)
+    return relays, {"gap": np.radians(1.0), "gap_torque": 0.05, "gap_centre_torque": centre_Nm,
+                    "gap_relay_span": span_Nm, "gap_relay_logits": jnp.asarray(logits[1:] - logits[0])}
+
+
+def test_a_relay_gap_within_its_crossing_is_not_named():
+    """95 % of the gap on the relay held ±0.2 N·m about +0.66 N·m (the measured baseline
+    initial-pos1 validation fit's span), the rest on its neighbours: within ±25 N·m loops."""
+    relays = RelayGapBacklash()
+    centre = relays.nearest_relay(1 / 3, -1 / 3)
+    relays, params = _relay_params(0.66, 0.2, {centre: 0.95, 0: 0.05})
+    assert relay_gap_shares(relays, params, -25.0, 25.0) == pytest.approx((0.0, 0.0), abs=1e-4)
+    assert relay_gap_note(relays, params, -25.0, 25.0) == ""
+
+
+def test_relays_in_the_flanks_and_never_switched_are_named_and_never_switched_ones_draw_nothing():
+    """The grid over 4 ± 31 N·m on ±40 N·m loops (a measured split trail's fit): a relay
+    switching up at +35 N·m is in a flank; one switching down at −27 N·m and up at +35 N·m is
+    never switched by loops within ±25 N·m, and its share adds a constant to the twist there."""
+    relays = RelayGapBacklash()
+    flank = relays.nearest_relay(1.0, -1.0)  # up +35, down −27 N·m
+    middle = relays.nearest_relay(0.0, 0.0)  # both at +4 N·m
+    relays, params = _relay_params(4.0, 31.0, {flank: 0.3, middle: 0.7})
+    shares = relay_gap_shares(relays, params, -40.0, 40.0)
+    assert shares == pytest.approx((0.3, 0.0), abs=1e-4)  # every switch inside ±40: none never switched
+    note = relay_gap_note(relays, params, -40.0, 40.0)
+    assert "30 % of its share sits on relays switching more than 20 N·m" in note and "0 % on relays" in note
+    assert relay_gap_shares(relays, params, -25.0, 25.0) == pytest.approx((0.3, 0.3), abs=1e-4)
+    # the forward model: within ±25 N·m the never-switched relay's share adds a constant
+    tau = jnp.asarray(25.0 * np.sin(np.linspace(0.0, 6 * np.pi, 600)))
+    with_it = np.asarray(relays.run_twist(params, tau))
+    _, moved = _relay_params(4.0, 31.0, {middle: 1.0})
+    without = np.asarray(relays.run_twist(moved, tau))
+    # (the other 26 relays carry e^−12 each, and they do switch: 1e-4 of the gap)
+    assert np.ptp(with_it - 0.7 * without) < 1e-4 * np.radians(1.0) < 1e-3 * np.ptp(with_it)

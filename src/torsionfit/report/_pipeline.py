@@ -27,11 +27,11 @@ from ..fit._prior import cycle_friction_readings_Nm
 from ..fit._noise_classes import _residuals, class_shares, refit_with_class_noise
 from ..fit._misfit import MISFIT_RHO, misfit_correlated_runs, widen_for_misfit
 from ..io import Campaign, decimate
-from ..model import SteppedBacklash, model_with_effects
+from ..model import RelayGapBacklash, SteppedBacklash, model_with_effects
 from ..units import ANGLE_UNITS
 from ._against_data import against_data, data_readings, off_data_note, unreadable_notes
 from ._derived import derived_metrics_for
-from ._physical import dahl_hook_note, gap_segment_note
+from ._physical import dahl_hook_note, gap_segment_note, relay_gap_note
 from ._follows import left_by_posterior_reason, not_followed_reason, runs_left_by_posterior, runs_not_followed
 
 ARCSEC = ANGLE_UNITS["arcsec"]
@@ -883,6 +883,14 @@ def fit_json(fit: CampaignFit, command: str | None = None) -> dict:
         hook = dahl_hook_note(problem.model.friction, means, peak)
         if hook:
             diagnostics["friction_hook_note"] = hook
+        relays = problem.model.backlash
+        if isinstance(relays, RelayGapBacklash):
+            logits = np.array([means[f"gap_relay_logits[{j}]"] for j in range(relays.n_relays - 1)])
+            relay = relay_gap_note(relays, {**means, "gap_relay_logits": logits},
+                                   min(float(np.min(r.torque_Nm)) for r in hysteresis),
+                                   max(float(np.max(r.torque_Nm)) for r in hysteresis))
+            if relay:
+                diagnostics["relay_gap_note"] = relay
     segment = gap_segment_note(problem.model.compliance, means, metrics.get("gap_with_first_segment", {}).get("hdi95"))
     if segment:
         diagnostics["gap_segment_note"] = segment
@@ -981,7 +989,7 @@ def summary_table(doc: dict) -> str:
         lines.append(f"optima: {d['map_rival_note']}")
     if d.get("metrics_off_data_note"):
         lines.append(f"off the data: {d['metrics_off_data_note']}")
-    for key in ("friction_hook_note", "gap_segment_note"):
+    for key in ("friction_hook_note", "gap_segment_note", "relay_gap_note"):
         if d.get(key):
             lines.append(f"physics: {d[key]}")
     for name, note in (d.get("metrics_not_computed") or {}).items():
