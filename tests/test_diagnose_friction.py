@@ -282,7 +282,7 @@ def test_diagnose_finds_a_held_gap_crossed_in_steps(tmp_path, seed):
     assert step.delta_elpd > 2 * step.delta_elpd_se and step.after.rmse_arcsec < step.before.rmse_arcsec, _summary(d)
     values = d.final.map_result.values
     print("fitted gap (′), span and centre (N·m):", float(values["gap"]) * 180 / np.pi * 60,
-          float(values["gap_relay_span"]), float(values["gap_centre_torque"]))
+          float(d.final.map_result.problem.model.backlash.span_Nm(values)), float(values["gap_centre_torque"]))
     # at least 90 % of the held gap's RMSE beyond the noise removed
     assert d.final.rmse_arcsec - d.noise_arcsec <= 0.1 * (d.base.rmse_arcsec - d.noise_arcsec), _summary(d)
     assert not d.unexplained, _summary(d)

@@ -644,3 +644,35 @@ def _stand_in_trail(monkeypatch, strength: dict, elpd):
     monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added: [])
     monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
     return tuple(Stand(n) for n in strength), calls
+
+
+def test_the_relay_gap_the_catalog_adds_is_bounded_by_half_the_loops_peak_torque():
+    """The catalog's relay gap keeps its switches within half the hysteresis runs' largest applied
+    torque of its centre (beyond, a relay switches in a loaded flank): the extension declares
+    the bound, the start puts the signature's span inside it as a share, and the bound's option
+    ``None`` gives the unbounded grid."""
+    from types import SimpleNamespace
+
+    from torsionfit.diagnose import GapRelays
+    from torsionfit.diagnose._signature import Evidence
+    from torsionfit.model import RELAY_FLANK_SHARE, RelayGapBacklash
+
+    ctx = SimpleNamespace(hysteresis=[SimpleNamespace(drive_torque_Nm=np.array([0.0, 30.0, -42.0, 4.0])),
+                                      SimpleNamespace(drive_torque_Nm=np.array([-4.0, 4.0]))])
+    bounded, unbounded = GapRelays(), GapRelays(max_span_share=None)
+    assert RELAY_FLANK_SHARE == 0.5 and bounded._bound_Nm(ctx) == pytest.approx(21.0) and unbounded._bound_Nm(ctx) is None
+
+    def evidence(bound):
+        return Evidence("gap_relays", 50.0, 28, -9.0, 0.3, "relays",
+                        {"relay_span_Nm": 6.0, "max_span_Nm": bound, "hold_torque_Nm": 2.0})
+
+    effects = {"distributed_friction": True, "gap_hold": {"centred": False}}
+    assert bounded.extend(effects, evidence(21.0), ctx) == {"distributed_friction": True, "gap_relays": {"max_span_Nm": 21.0}}
+    assert unbounded.extend(effects, evidence(None), ctx) == {"distributed_friction": True, "gap_relays": True}
+    start = bounded.start_values(evidence(21.0))
+    assert start["gap_relay_span_share"] == pytest.approx(6.0 / 21.0) and "gap_relay_span" not in start
+    relays = RelayGapBacklash()
+    assert np.argmax(np.concatenate([[0.0], start["gap_relay_logits"]])) == relays.nearest_relay(1 / 3, -1 / 3)
+    assert unbounded.start_values(evidence(None))["gap_relay_span"] == 6.0
+    model = model_with_effects(["hysteresis"], bounded.extend(effects, evidence(21.0), ctx), 20.0)
+    assert model.backlash.max_span_Nm == 21.0

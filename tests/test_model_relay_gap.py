@@ -42,13 +42,36 @@ def test_switch_and_its_checks():
     assert params["gap_relay_logits"].size == 14 and "gap_start" in params
     assert params["gap_centre_torque"].constraint == "real" and params["gap_relay_span"].constraint == "positive"
     assert model_with_effects(["hysteresis"], {"gap_relays": True}, 20.0).backlash.n_relays == 28
-    for bad in ("yes", {"thresholds": 1}, {"thresholds": 5.0}, {"span_Nm": 4.0}):
-        with pytest.raises(InputError, match=r"\[effects\].gap_relays: expected true, false or \{thresholds = G\}"):
+    for bad in ("yes", {"thresholds": 1}, {"thresholds": 5.0}, {"span_Nm": 4.0}, {"max_span_Nm": 0.0},
+                {"max_span_Nm": True}, {"max_span_Nm": float("inf")}, {"max_span_Nm": "10"}):
+        with pytest.raises(InputError, match=r"\[effects\].gap_relays: expected true, false or \{thresholds = G, max_span_Nm = S\}"):
             model_with_effects(["hysteresis"], {"gap_relays": bad}, 20.0)
     with pytest.raises(InputError, match=r"\[effects\].gap_relays: needs a hysteresis run and cannot be combined"):
         model_with_effects(["hysteresis"], {"gap_relays": True, "gap_hold": True}, 20.0)
     with pytest.raises(InputError, match=r"\[effects\].gap_relays: needs a hysteresis run"):
         model_with_effects(["transmission_error"], {"gap_relays": True}, 20.0, fitted=True)
+
+
+def test_a_bounded_span_is_a_share_of_its_bound_and_no_switch_goes_beyond_it():
+    """With ``max_span_Nm`` the fit takes the span as a share of the bound (a unit-interval
+    parameter): every switch lies within centre ± bound whatever the share's unconstrained value,
+    and a start at a span beyond the bound is clipped inside it."""
+    from torsionfit.fit._transform import forward
+
+    model = model_with_effects(["hysteresis"], {"gap_relays": {"max_span_Nm": 10.0}}, 20.0)
+    relays = model.backlash
+    params = {p.name: p for p in model.parameters()}
+    assert relays.max_span_Nm == 10.0 and "gap_relay_span" not in params
+    assert params["gap_relay_span_share"].constraint == "unit_interval" and params["gap_relay_span_share"].unit == "1"
+    for u in (-30.0, 0.0, 30.0):
+        up, down = relays.switches_Nm({"gap_centre_torque": -2.0, "gap_relay_span_share": forward("unit_interval", u)})
+        assert np.all(np.abs(np.asarray(up) + 2.0) <= 10.0) and np.all(np.abs(np.asarray(down) + 2.0) <= 10.0)
+    assert float(relays.span_Nm({"gap_relay_span_share": 0.25})) == pytest.approx(2.5)
+    assert relays.span_values(4.0) == {"gap_relay_span_share": pytest.approx(0.4)}
+    assert relays.span_values(40.0)["gap_relay_span_share"] < 1.0
+    assert RelayGapBacklash().span_values(40.0) == {"gap_relay_span": 40.0}  # unbounded: as given
+    with pytest.raises(ValueError, match="max_span_Nm must be a finite torque > 0"):
+        RelayGapBacklash(max_span_Nm=-1.0)
 
 
 def test_the_grid_pairs_every_up_switch_with_each_down_switch_at_or_below_it():

@@ -14,7 +14,7 @@ import numpy as np
 from ..fit import temperatures_resolving_friction
 from ..fit._prior import first_look_ramp_time_s
 from ..metrics import gap_crossings
-from ..model import (DahlFriction, HeldGapBacklash, MaxwellSlipFriction, RelayGapBacklash, SmoothBacklash, TemperatureDependence as TemperatureTerm,
+from ..model import (RELAY_FLANK_SHARE, DahlFriction, HeldGapBacklash, MaxwellSlipFriction, RelayGapBacklash, SmoothBacklash, TemperatureDependence as TemperatureTerm,
                      GapLag as GapLagTerm)
 from ..model._drift import WARM_UP_FRACTIONS
 from ..model._effects import DEFAULT_FRICTION_ELEMENTS
@@ -855,8 +855,18 @@ class GapRelays(Effect):
     extension_text = ("the gap crossed in held steps: relays whose up- and down-switches lie on a grid about a "
                       "centre, each with its share of the gap (a Preisach gap)")
 
-    def __init__(self, from_smooth_gap: bool = False):
+    def __init__(self, from_smooth_gap: bool = False, max_span_share: float | None = RELAY_FLANK_SHARE):
+        # max_span_share: the relays' half-span bound as a share of the hysteresis runs' largest
+        # applied torque (None: unbounded). Bounded by default: unbounded, the relays added to
+        # measured split loops spread their switches over 0.8 of the peak, drew the flanks'
+        # hysteresis and took a gap of 2140′ against the data's 6.2′ play (docs/validation.md)
         self.from_smooth_gap = from_smooth_gap
+        self.max_span_share = max_span_share
+
+    def _bound_Nm(self, ctx) -> float | None:
+        if self.max_span_share is None:
+            return None
+        return self.max_span_share * max(float(np.max(np.abs(v.drive_torque_Nm))) for v in ctx.hysteresis)
 
     def applicable(self, ctx):
         # The held gap is the one-relay case, and a preloaded or stepped gap is another shape.
@@ -881,7 +891,9 @@ class GapRelays(Effect):
         # data's own crossing centre (the large cycles', as the centre's prior), else zero.
         problem = ctx.map_result.problem
         current = problem.model.backlash
-        relays = RelayGapBacklash(initial_state=getattr(current, "initial_state", 0.0))  # the smooth gap has no state
+        bound = self._bound_Nm(ctx)
+        relays = RelayGapBacklash(initial_state=getattr(current, "initial_state", 0.0),  # the smooth gap has no state
+                                  max_span_Nm=bound)
         alt = eqx.tree_at(lambda mm: mm.backlash, problem.model, relays)
         values = problem.physics_values(jnp.asarray(ctx.map_result.u))
         start = np.asarray(values["friction_start"], float) if "friction_start" in values else np.zeros(problem.model.n_hysteresis)
@@ -895,8 +907,8 @@ class GapRelays(Effect):
         curvature = _curvature(ctx)
         evidence = []
         for share in GAP_RELAY_SPAN_SHARES:
-            span = share * peak
-            extra = {"gap_centre_torque": centre, "gap_relay_span": span, "gap_relay_logits": np.zeros(relays.n_relays - 1),
+            span = share * peak if bound is None else min(share * peak, 0.9 * bound)
+            extra = {"gap_centre_torque": centre, **relays.span_values(span), "gap_relay_logits": np.zeros(relays.n_relays - 1),
                      "gap_start": np.asarray(values["gap_start"], float) if "gap_start" in values else start}
             evidence.append(_score_test(
                 ctx, self.name, alt, extra,
@@ -905,7 +917,7 @@ class GapRelays(Effect):
                 f"residual along the change from the {'held' if held else 'smooth'} gap to relays whose switches lie "
                 f"on a grid of {relays.n_thresholds} mesh torques over {centre:+.3g} ± {span:.3g} N·m, one share of the "
                 "gap moved to each: the gap crossed in steps at other torques going up than coming down",
-                {"relay_span_Nm": span, **found}, nuisance=curvature))
+                {"relay_span_Nm": span, "max_span_Nm": bound, **found}, nuisance=curvature))
         best = min(evidence, key=lambda ev: ev.log10_p)
         return replace(best, log10_p=min(0.0, best.log10_p + float(np.log10(len(evidence)))))
 
@@ -916,15 +928,18 @@ class GapRelays(Effect):
         # the signature was tested at
         if "relay_span_Nm" not in evidence.details:
             return {}
-        relays, span = RelayGapBacklash(), evidence.details["relay_span_Nm"]
+        relays = RelayGapBacklash(max_span_Nm=evidence.details.get("max_span_Nm"))
+        span = evidence.details["relay_span_Nm"]
         if "hold_torque_Nm" not in evidence.details:
-            return {"gap_relay_span": span, "gap_centre_torque": evidence.details["centre_Nm"]}
+            return {**relays.span_values(span), "gap_centre_torque": evidence.details["centre_Nm"]}
         hold = evidence.details["hold_torque_Nm"]
-        return {"gap_relay_span": span,
+        return {**relays.span_values(span),
                 "gap_relay_logits": relays.logits_on(relays.nearest_relay(hold / span, -hold / span))}
 
     def extend(self, effects, evidence, ctx):
-        return {**{k: v for k, v in effects.items() if k != "gap_hold"}, self.name: True}
+        bound = evidence.details.get("max_span_Nm")
+        return {**{k: v for k, v in effects.items() if k != "gap_hold"},
+                self.name: True if bound is None else {"max_span_Nm": float(bound)}}
 
 
 class TemperatureDependence(Effect):

@@ -125,6 +125,7 @@ def build_priors(parameters, campaign: Campaign, gap_from_crossings: bool = Fals
         "gap_preload_torque": (log(0.1 * rated), 1.5),
         "gap_hold_torque": (log(0.1 * rated), 1.5),
         "gap_relay_span": (log(0.1 * rated), 1.5),
+        "gap_relay_span_share": (0.0, 1.5),  # logit-normal around half the bound, wide
         "gap_centre_torque": (0.0, 0.05 * rated),
         "gap_start": (0.0, 1.0),  # tanh-normal: g0 anywhere in (−1, 1)
         "gap_residual_share": (log(0.2 / 0.8), 1.5),  # logit-normal around w = 0.2: most of the gap preloaded

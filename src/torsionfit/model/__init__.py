@@ -7,6 +7,7 @@ from ._backlash import (
     FrictionClosureBacklash as FrictionClosureBacklash,
     HeldGapBacklash as HeldGapBacklash,
     NoBacklash as NoBacklash,
+    RELAY_FLANK_SHARE as RELAY_FLANK_SHARE,
     PreloadedBacklash as PreloadedBacklash,
     RelayGapBacklash as RelayGapBacklash,
     ResidualPlayBacklash as ResidualPlayBacklash,

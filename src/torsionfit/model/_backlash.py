@@ -1,6 +1,7 @@
 """Geometric lost motion: the gap β is crossed while the mesh torque changes sign."""
 
 import abc
+import math
 
 import equinox as eqx
 import jax
@@ -254,6 +255,14 @@ class HeldGapBacklash(AbstractBacklash):
 DEFAULT_GAP_THRESHOLDS = 7
 
 
+#: the farthest a gap's relays may switch from their centre, as a share of the loops' largest
+#: applied torque: a relay switching further switches in a loaded flank, where it draws the
+#: hysteresis friction and compliance draw, not the gap's crossing (on measured split loops an
+#: unbounded grid spread its switches over 0.8 of the peak and took a gap of 2140′ against the
+#: data's 6.2′ play)
+RELAY_FLANK_SHARE = 0.5
+
+
 class RelayGapBacklash(AbstractBacklash):
     """A gap crossed in held steps (a Preisach gap): shares ``w_k`` of the gap β, each a relay
     that crosses its share once the mesh torque rises past its up-switch ``u_k`` and back once
@@ -270,15 +279,21 @@ class RelayGapBacklash(AbstractBacklash):
     held by its own friction); one held relay (:class:`HeldGapBacklash`) draws the largest step
     only. One relay ``(c + S·a, c − S·a)`` of the grid is :class:`HeldGapBacklash` centred on c
     and held S·a. ``initial_state`` g0 (or the run's
-    start) is every relay's state at the first sample, clamped to its band there."""
+    start) is every relay's state at the first sample, clamped to its band there.
+    ``max_span_Nm`` bounds S (N·m): the fit then takes S as a share of it
+    (``gap_relay_span_share``), so that no relay switches further from c; unbounded by default."""
 
     hysteretic = True
     n_thresholds: int = eqx.field(static=True, default=DEFAULT_GAP_THRESHOLDS)
     initial_state: float = eqx.field(static=True, default=0.0)
+    max_span_Nm: float | None = eqx.field(static=True, default=None)
 
     def __check_init__(self):
         if not (isinstance(self.n_thresholds, int) and self.n_thresholds >= 2):
             raise ValueError(f"RelayGapBacklash: n_thresholds must be an integer ≥ 2, got {self.n_thresholds!r}")
+        if self.max_span_Nm is not None and not (isinstance(self.max_span_Nm, (int, float))
+                                                 and math.isfinite(self.max_span_Nm) and self.max_span_Nm > 0):
+            raise ValueError(f"RelayGapBacklash: max_span_Nm must be a finite torque > 0 N·m or None, got {self.max_span_Nm!r}")
 
     @property
     def n_relays(self) -> int:
@@ -289,7 +304,10 @@ class RelayGapBacklash(AbstractBacklash):
             Parameter("gap", "positive", "rad", "geometric gap β (lost motion of the mesh)"),
             Parameter("gap_torque", "positive", "N·m", "mesh torque τ_β over which each relay of the gap switches"),
             Parameter("gap_centre_torque", "real", "N·m", "mesh torque c the relays' switches are spread about"),
-            Parameter("gap_relay_span", "positive", "N·m", "half-span S of the relays' switches about c"),
+            Parameter("gap_relay_span", "positive", "N·m", "half-span S of the relays' switches about c")
+            if self.max_span_Nm is None else
+            Parameter("gap_relay_span_share", "unit_interval", "1",
+                      "half-span S of the relays' switches about c, as a share of its bound max_span_Nm"),
             Parameter("gap_relay_logits", "real", "1", "log shares of the gap's relays 2…K against the first",
                       size=self.n_relays - 1),
         )
@@ -302,10 +320,23 @@ class RelayGapBacklash(AbstractBacklash):
         up, down = zip(*[(grid[i], grid[j]) for i in range(n) for j in range(i + 1)])
         return np.array(up), np.array(down)
 
+    def span_Nm(self, params):
+        """The half-span S of the relays' switches (N·m)."""
+        if self.max_span_Nm is None:
+            return params["gap_relay_span"]
+        return self.max_span_Nm * params["gap_relay_span_share"]
+
+    def span_values(self, span_Nm: float) -> dict:
+        """The parameter value that sets S to ``span_Nm`` (a start), within the bound's open
+        interval when there is one: 99 % of it at most."""
+        if self.max_span_Nm is None:
+            return {"gap_relay_span": float(span_Nm)}
+        return {"gap_relay_span_share": float(np.clip(span_Nm / self.max_span_Nm, 1e-3, 0.99))}
+
     def switches_Nm(self, params):
         """(up-switch u_k, down-switch d_k) of each relay (N·m of mesh torque)."""
         up, down = self.unit_switches()
-        c, span = params["gap_centre_torque"], params["gap_relay_span"]
+        c, span = params["gap_centre_torque"], self.span_Nm(params)
         return c + span * up, c + span * down
 
     def nearest_relay(self, up: float, down: float) -> int:

@@ -1,5 +1,7 @@
 """Switching model extensions on by name (the effects catalog's names, DESIGN §3)."""
 
+import math
+
 from .._errors import InputError
 from ._backlash import (DEFAULT_GAP_STEPS, DEFAULT_GAP_THRESHOLDS, ClosedGapBacklash, FrictionClosureBacklash, HeldGapBacklash, PreloadedBacklash,
                         RelayGapBacklash, ResidualPlayBacklash, SmoothBacklash, SteppedBacklash)
@@ -144,17 +146,21 @@ def _gap_steps(value):
 
 
 def _gap_relays(value):
-    """``gap_relays``: false, true or {thresholds = G} (:class:`RelayGapBacklash`: a gap crossed in
-    held steps whose up- and down-switches lie on G mesh torques spread over a fitted span about
-    a fitted centre; G defaults to 7)."""
+    """``gap_relays``: false, true or {thresholds = G, max_span_Nm = S} (:class:`RelayGapBacklash`:
+    a gap crossed in held steps whose up- and down-switches lie on G mesh torques spread over a
+    fitted span about a fitted centre; G defaults to 7; the span is at most S N·m when S is
+    given, unbounded otherwise)."""
     if value is False or value is None:
         return None
     n = value.get("thresholds", DEFAULT_GAP_THRESHOLDS) if isinstance(value, dict) else DEFAULT_GAP_THRESHOLDS
-    if not (value is True or (isinstance(value, dict) and set(value) <= {"thresholds"}
-                              and isinstance(n, int) and not isinstance(n, bool) and n >= 2)):
-        raise InputError(f"[effects].gap_relays: expected true, false or {{thresholds = G}} with G ≥ 2 (default "
-                         f"{DEFAULT_GAP_THRESHOLDS}), got {value!r}")
-    return RelayGapBacklash(n_thresholds=n)
+    bound = value.get("max_span_Nm") if isinstance(value, dict) else None
+    if not (value is True or (isinstance(value, dict) and set(value) <= {"thresholds", "max_span_Nm"}
+                              and isinstance(n, int) and not isinstance(n, bool) and n >= 2
+                              and (bound is None or (isinstance(bound, (int, float)) and not isinstance(bound, bool)
+                                                     and math.isfinite(bound) and bound > 0)))):
+        raise InputError(f"[effects].gap_relays: expected true, false or {{thresholds = G, max_span_Nm = S}} with G ≥ 2 "
+                         f"(default {DEFAULT_GAP_THRESHOLDS}) and S > 0 N·m (default: unbounded), got {value!r}")
+    return RelayGapBacklash(n_thresholds=n, max_span_Nm=None if bound is None else float(bound))
 
 
 #: Maxwell-slip elements of ``distributed_friction = true``

@@ -22,7 +22,7 @@ relays after a held gap ended at a gap of 36°).
 
 import numpy as np
 
-from ..model import DahlFriction, RelayGapBacklash, ThreeSegmentCompliance
+from ..model import RELAY_FLANK_SHARE, DahlFriction, RelayGapBacklash, ThreeSegmentCompliance
 from ._derived import first_segment_twist
 
 
@@ -121,11 +121,9 @@ def gap_segment_note(compliance, params: dict, sum_hdi_arcmin=None) -> str:
             "backlash and lost_motion read the whole loop)")
 
 
-#: a relay whose up- or down-switch lies further than this share of the loops' peak torque from
-#: the relays' centre switches in a loaded flank, not in the gap's crossing
-RELAY_FLANK_SHARE = 0.5
-#: … and the relay gap is named when at least this share of it sits on such relays or on
-#: relays the loops never switch
+#: a relay gap is named when at least this share of it sits on relays switching further than
+#: ``RELAY_FLANK_SHARE`` of the loops' peak torque from the relays' centre (in a loaded flank, not
+#: in the gap's crossing) or on relays the loops never switch
 RELAY_NOTE_SHARE = 0.1
 
 
@@ -134,8 +132,8 @@ def relay_gap_shares(backlash, params: dict, low_Nm: float, high_Nm: float) -> t
     |low|, |high| from the centre, share on relays the applied torque range [low, high] never
     switches: up-switch above ``high`` or down-switch below ``low``) of a :class:`RelayGapBacklash`
     (the mesh torque's range is narrower by the friction, so the second is a share at least);
-    (0, 0) for another gap. ``params``: ``gap_centre_torque``, ``gap_relay_span`` (N·m) and
-    ``gap_relay_logits``."""
+    (0, 0) for another gap. ``params``: the gap's own (``gap_centre_torque``, its span and
+    ``gap_relay_logits``)."""
     if not isinstance(backlash, RelayGapBacklash):
         return 0.0, 0.0
     shares = np.asarray(backlash.shares(params), float)

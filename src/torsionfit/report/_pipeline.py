@@ -235,8 +235,9 @@ def _nested_starts(campaign: Campaign, options: FitOptions, problem, seed: int):
         # gap exactly — on a measured baseline loop held ±0.1 N·m the first alone ended 79″
         # above the held gap's fit in sample
         hold = float(inner_problem.physics_values(jnp.asarray(inner.u))["gap_hold_torque"])
-        up = problem.model.backlash.unit_switches()[0]
-        exact = moved_start(problem, start, {"gap_relay_span": hold / float(np.min(up[up > 0]))})
+        relays = problem.model.backlash
+        up = relays.unit_switches()[0]
+        exact = moved_start(problem, start, relays.span_values(hold / float(np.min(up[up > 0]))))
         return np.stack([gap_on_the_held_relay(problem, names, s, hold) for s in (start, exact)])
     return start[None, :]
 
@@ -264,7 +265,7 @@ def gap_on_the_held_relay(problem, run_names, start: np.ndarray, hold_Nm: float)
     the grid; from even shares, though, the fit starts from a gap smeared over the whole grid."""
     relays = problem.model.backlash
     names = problem.names(run_names)
-    span = float(problem.physics_values(np.asarray(start[:problem.n_nonlinear], float))["gap_relay_span"])
+    span = float(relays.span_Nm(problem.physics_values(np.asarray(start[:problem.n_nonlinear], float))))
     first = names.index("gap_relay_logits[0]")
     start = np.array(start, float)
     start[first:first + relays.n_relays - 1] = relays.logits_on(relays.nearest_relay(hold_Nm / span, -hold_Nm / span))
