@@ -907,8 +907,9 @@ class GapRelays(Effect):
         curvature = _curvature(ctx)
         evidence = []
         for share in GAP_RELAY_SPAN_SHARES:
-            span = share * peak if bound is None else min(share * peak, 0.9 * bound)
-            extra = {"gap_centre_torque": centre, **relays.span_values(span), "gap_relay_logits": np.zeros(relays.n_relays - 1),
+            spread = relays.span_values(share * peak)  # inside the bound, if any
+            span = float(relays.span_Nm(spread))
+            extra = {"gap_centre_torque": centre, **spread, "gap_relay_logits": np.zeros(relays.n_relays - 1),
                      "gap_start": np.asarray(values["gap_start"], float) if "gap_start" in values else start}
             evidence.append(_score_test(
                 ctx, self.name, alt, extra,
