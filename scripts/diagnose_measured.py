@@ -99,7 +99,7 @@ def diagnose_unit(unit: str, args) -> tuple[list[str], dict, str]:
     result = diagnose(campaign, options, seed=args.seed, progress=say)
     doc = write_diagnosis(result, campaign, args.output / unit)
     seconds = time.perf_counter() - t0
-    entry = {k: doc[k] for k in ("label", "added", "unexplained", "unexplained_description", "rmse_base", "rmse_final")}
+    entry = {k: doc[k] for k in ("label", "added", "replaced", "unexplained", "unexplained_description", "rmse_base", "rmse_final")}
     entry["steps"] = [{k: s[k] for k in ("effect", "rmse_before", "rmse_after", "delta_elpd", "delta_elpd_se")} for s in doc["steps"]]
     entry["dropped"] = [r["effect"] for r in doc["removals"] if r["dropped"]]
     entry["seconds"] = seconds

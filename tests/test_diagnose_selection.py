@@ -676,3 +676,39 @@ def test_the_relay_gap_the_catalog_adds_is_bounded_by_half_the_loops_peak_torque
     assert unbounded.start_values(evidence(None))["gap_relay_span"] == 6.0
     model = model_with_effects(["hysteresis"], bounded.extend(effects, evidence(21.0), ctx), 20.0)
     assert model.backlash.max_span_Nm == 21.0
+
+
+def test_a_step_a_later_one_replaced_is_not_reported_as_added():
+    """The relays take the held gap's place: the trail keeps both steps, the final model and the
+    report's ``added`` only the relays, with the replacement said."""
+    from types import SimpleNamespace
+
+    from torsionfit.diagnose._loop import Diagnosis
+    from torsionfit.diagnose._report import summary_text
+
+    def fitted(**effects):
+        return SimpleNamespace(effects=effects)
+
+    base = fitted()
+    slip = fitted(distributed_friction=True)
+    held = fitted(distributed_friction=True, gap_hold=True)
+    relays = fitted(distributed_friction=True, gap_relays={"max_span_Nm": 20.0})
+    grown = fitted(distributed_friction=True, gap_relays={"max_span_Nm": 20.0},
+                   load_dependent_friction={"memory": True})
+    steps = [SimpleNamespace(effect=e, before=b, after=a) for e, b, a in (
+        ("distributed_friction", base, slip), ("gap_hold", slip, held), ("gap_relays", held, relays),
+        ("friction_load_memory", relays, grown))]
+    d = Diagnosis(base=base, final=grown, steps=steps, rejected=[], signatures=[], unexplained=False,
+                  unexplained_description="", leftovers=[], notes=[], noise_arcsec=1.0)
+    assert d.replaced() == {"gap_hold": "gap_relays"}
+    assert d.final_added() == ["distributed_friction", "gap_relays", "friction_load_memory"]
+    # a step that changes a switch already in (a memory for the level) replaces nothing
+    level, memory = fitted(load_dependent_friction=True), fitted(load_dependent_friction={"memory": True})
+    steps = [SimpleNamespace(effect="load_dependent_friction", before=base, after=level),
+             SimpleNamespace(effect="friction_load_memory", before=level, after=memory)]
+    d = Diagnosis(base=base, final=memory, steps=steps, rejected=[], signatures=[], unexplained=False,
+                  unexplained_description="", leftovers=[], notes=[], noise_arcsec=1.0)
+    assert d.replaced() == {} and d.final_added() == ["load_dependent_friction", "friction_load_memory"]
+    doc = {"rmse_base": 2.0, "steps": [], "rejected": [], "rmse_final": 1.0, "noise_estimate": 1.0,
+           "added": ["gap_relays"], "replaced": {"gap_hold": "gap_relays"}, "unexplained": False}
+    assert "effects added: gap_relays; gap_hold replaced by gap_relays" in summary_text(doc)

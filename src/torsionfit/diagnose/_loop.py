@@ -156,6 +156,25 @@ class Diagnosis:
     #: the backward checks (``DiagnoseOptions.backward``), in order; the dropped ones are not in ``steps``
     removals: list = field(default_factory=list)
 
+    def replaced(self) -> dict[str, str]:
+        """The kept steps' effects a later step took out of the model in its place (the held gap
+        the relays replace, ``Effect.nests``), each with that later step's effect; they stay in
+        ``steps``, as the trail went, but are not in the final model."""
+        out = {}
+        for i, step in enumerate(self.steps):
+            introduced = set(step.after.effects) - set(step.before.effects)
+            if not introduced or introduced <= set(self.final.effects):
+                continue
+            later = next((s.effect for s in self.steps[i + 1:] if not introduced <= set(s.after.effects)), None)
+            if later is not None:
+                out[step.effect] = later
+        return out
+
+    def final_added(self) -> list[str]:
+        """The effects the trail added that the final model holds, in the order they came."""
+        gone = self.replaced()
+        return [e for e in dict.fromkeys(s.effect for s in self.steps) if e not in gone]
+
 
 @in_float64
 def fit_with(campaign: Campaign, effects: dict, options: DiagnoseOptions, seed: int,

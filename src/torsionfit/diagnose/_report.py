@@ -37,7 +37,10 @@ def diagnose_json(d: Diagnosis, campaign) -> dict:
              **s.comparison.as_dict()}
             for s in d.steps
         ],
-        "added": list(dict.fromkeys(s.effect for s in d.steps)),  # a growable effect may take two steps
+        # the final model's: a growable effect may take two steps, and a later step may replace one
+        "added": d.final_added(),
+        # kept steps a later one took out in its place (the held gap the relays replace): effect → replacer
+        "replaced": d.replaced(),
         "rejected": [
             {"effect": s.effect, "evidence": _evidence(s.evidence), "rmse_before": s.before.rmse_arcsec,
              "rmse_after": s.after.rmse_arcsec, **s.comparison.as_dict()}
@@ -83,8 +86,9 @@ def summary_text(doc: dict) -> str:
         lines.append(f"- {r['effect']:24s} {verdict}: ΔELPD {r['delta_elpd']:.1f} ± {r['delta_elpd_se']:.1f} "
                      f"({r['criterion']}) over the model without it, RMSE {r['rmse_without']:.3g}″ without it, "
                      f"{r['rmse_with']:.3g}″ with it")
+    replaced = "".join(f"; {e} replaced by {by}" for e, by in doc.get("replaced", {}).items())
     lines.append(f"final: RMSE {doc['rmse_final']:.3g}″ (noise estimate {doc['noise_estimate']:.3g}″), "
-                 f"effects added: {', '.join(doc['added']) or 'none'}")
+                 f"effects added: {', '.join(doc['added']) or 'none'}{replaced}")
     if doc.get("final_metrics"):
         k = doc["final_metrics"].get("misfit_inflation", 1.0)
         widened = f", likelihood tempered by 1/{k:.3g} for misfit" if k > 1.0 else ""
@@ -256,7 +260,8 @@ def write_figures(d: Diagnosis, campaign, folder) -> list:
         plt.close(fig)
         paths.append(path)
     fig, axes = plt.subplots(n, 1, figsize=(8, 1.6 * n + 1), squeeze=False, constrained_layout=True)
-    _residual_panels(axes[:, 0], d.final, "final model" + (f" (+ {', '.join(s.effect for s in d.steps)})" if d.steps else " (base)"))
+    added = d.final_added()
+    _residual_panels(axes[:, 0], d.final, "final model" + (f" (+ {', '.join(added)})" if added else " (base)"))
     # "nothing left" over a residual of jumps would read as a good fit: the title says it moves in jumps
     robust = any(r.robust for r in d.final.context.runs)
     jumps = ("; " + JUMPS + (", weighed down in the tests" if robust else ", counted as noise") + " (see the notes)"
