@@ -304,7 +304,7 @@ def test_a_step_keeps_the_candidate_that_earns_the_most(monkeypatch):
     monkeypatch.setattr(_loop, "compare", compare)
     monkeypatch.setattr(_loop, "_signatures", signatures)
     monkeypatch.setattr(_loop, "noise_rmse_arcsec", lambda ctx: 1.0)
-    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added: [])
+    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added, tried: [])
     monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
     d = _loop.diagnose(SimpleNamespace(), _loop.DiagnoseOptions(catalog=catalog), seed=0)
     assert [s.effect for s in d.steps] == ["weaker"]
@@ -381,7 +381,7 @@ def test_an_effect_that_contains_another_is_kept_only_when_it_earns_its_keep_ove
     monkeypatch.setattr(_loop, "_signatures", lambda ctx, options, added: [] if added else [
         (e, e.signature(ctx, options.alpha)) for e in options.catalog])
     monkeypatch.setattr(_loop, "noise_rmse_arcsec", lambda ctx: 1.0)
-    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added: [])
+    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added, tried: [])
     monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
     options = _loop.DiagnoseOptions(catalog=catalog, backward=False)
     # the relays gain 5 over the held gap (below the 10 a step must gain): the held gap is kept
@@ -537,7 +537,7 @@ def test_the_backward_check_drops_an_effect_a_later_one_made_redundant(monkeypat
         return (60.0 if "gap" in e else 40.0 if "drift" in e else 0.0) + (2.0 if {"gap", "drift"} <= e else 0.0) \
             + (30.0 if "creep" in e else 0.0) + (25.0 if "speed" in e else 0.0)
 
-    catalog, calls = _stand_in_trail(monkeypatch, {"drift": -30.0, "gap": -20.0, "creep": -10.0, "speed": -9.0}, elpd)
+    catalog, calls, _ = _stand_in_trail(monkeypatch, {"drift": -30.0, "gap": -20.0, "creep": -10.0, "speed": -9.0}, elpd)
     # one candidate a step, room for two effects: drift (the strongest signature) then the gap
     options = _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=1, max_candidates_first_step=1,
                                     max_candidates_per_step=1, max_effects=2)
@@ -579,7 +579,7 @@ def test_a_trail_at_its_limit_swaps_its_weakest_effect_for_a_stronger_one(monkey
     def elpd(effects):
         return sum(worth[n] for n in effects)
 
-    catalog, calls = _stand_in_trail(monkeypatch, strength, elpd)
+    catalog, calls, _ = _stand_in_trail(monkeypatch, strength, elpd)
     options = _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=1,
                                     max_candidates_first_step=1, max_candidates_per_step=1, max_effects=2)
     d = _loop.diagnose(SimpleNamespace(), options, seed=0)
@@ -641,9 +641,10 @@ def _stand_in_trail(monkeypatch, strength: dict, elpd):
     monkeypatch.setattr(_loop, "_signatures", lambda ctx, options, added: [
         (e, e.signature(ctx, options.alpha)) for e in options.catalog if e.name not in added])
     monkeypatch.setattr(_loop, "noise_rmse_arcsec", lambda ctx: 1.0)
-    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added: [])
+    leftovers = []  # the effects refitted on the final model, as the trail tells the leftovers
+    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added, tried: leftovers.append(set(tried)) or [])
     monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
-    return tuple(Stand(n) for n in strength), calls
+    return tuple(Stand(n) for n in strength), calls, leftovers
 
 
 def test_the_relay_gap_the_catalog_adds_is_bounded_by_half_the_loops_peak_torque():
@@ -712,3 +713,28 @@ def test_a_step_a_later_one_replaced_is_not_reported_as_added():
     doc = {"rmse_base": 2.0, "steps": [], "rejected": [], "rmse_final": 1.0, "noise_estimate": 1.0,
            "added": ["gap_relays"], "replaced": {"gap_hold": "gap_relays"}, "unexplained": False}
     assert "effects added: gap_relays; gap_hold replaced by gap_relays" in summary_text(doc)
+
+
+def test_the_leftovers_say_whether_a_significant_signature_was_refitted(monkeypatch):
+    """A significant signature beyond the refits a step tries was never refitted: its leftover
+    says so, not that its extension failed to earn its keep."""
+    from types import SimpleNamespace
+
+    from torsionfit.diagnose import _loop
+    from torsionfit.diagnose._signature import Evidence
+
+    real_leftovers = _loop._leftovers  # the stand-in trail replaces it
+    # nothing earns: the base model's step refits two of the three significant signatures
+    catalog, calls, leftovers = _stand_in_trail(monkeypatch, {"drift": -30.0, "gap": -20.0, "creep": -10.0},
+                                                lambda effects: 0.0)
+    options = _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=2, max_candidates_first_step=2)
+    d = _loop.diagnose(SimpleNamespace(), options, seed=0)
+    assert d.steps == [] and leftovers == [{"drift", "gap"}]
+    # the wording of each
+    monkeypatch.setattr(_loop, "_signatures", lambda ctx, options, added: [
+        (e, Evidence(e.name, 40.0, 1, -9.0, 0.2, "a residual")) for e in catalog])
+    out = real_leftovers(SimpleNamespace(hysteresis=[], te=[], runs=[]), options, set(), {"drift", "gap"})
+    text = {ev.details["signature_of"]: (ev.details["refitted"], ev.description) for ev in out}
+    assert text["drift"] == (True, "drift signature still significant (log10 p -9.0) but its extension did not "
+                                   "earn its keep: a residual")
+    assert text["creep"][0] is False and "its extension was not refitted on the final model" in text["creep"][1]

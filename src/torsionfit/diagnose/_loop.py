@@ -297,7 +297,10 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
     final, white = current.context, tuple(r.white_at_bound() for r in current.context.runs)
     if any(w is not r for w, r in zip(white, final.runs)):
         final = replace(final, runs=white)
-    findings, notes = judge_leftovers(_leftovers(final, options, added), current.rmse_arcsec, noise, options)
+    # the leftovers say which of them were refitted on the final model: a signature beyond the
+    # step's refits (or the trail's limit of effects) was never tried, which is not a failed refit
+    tried = {s.effect for s in rejected if s.before is current}
+    findings, notes = judge_leftovers(_leftovers(final, options, added, tried), current.rmse_arcsec, noise, options)
     notes += [n for n in (noise_bound_note(current.context.runs), jump_note(current.context.runs)) if n]
     description = "; ".join(ev.description for ev in findings)
     return Diagnosis(base=base, final=current, steps=steps, rejected=rejected, signatures=history,
@@ -612,14 +615,18 @@ def _periodic_search(ctx: FitContext, runs, variable, label: str, unit_scale: fl
                     f"({100 * ev.explained:.1f} % of the residual variance)", {"period": period / unit_scale, "unit": unit})
 
 
-def _leftovers(ctx: FitContext, options: DiagnoseOptions, added: set) -> list:
-    """Structure the final model leaves that no catalog effect explains."""
+def _leftovers(ctx: FitContext, options: DiagnoseOptions, added: set, tried: set = frozenset()) -> list:
+    """Structure the final model leaves that no catalog effect explains; ``tried``: the effects
+    refitted on the final model (and not kept there)."""
     out = []
     for effect, ev in _signatures(ctx, options, added):
         if ev.significant(options.alpha):
+            why = ("its extension did not earn its keep" if effect.name in tried else
+                   "its extension was not refitted on the final model (beyond the refits a step tries, or the "
+                   "trail's limit of effects)")
             out.append(Evidence("unexplained", ev.statistic, ev.dof, ev.log10_p, ev.explained,
-                                f"{effect.name} signature still significant (log10 p {ev.log10_p:.1f}) but its extension did not earn its keep: {ev.description}",
-                                {"signature_of": effect.name}))
+                                f"{effect.name} signature still significant (log10 p {ev.log10_p:.1f}) but {why}: {ev.description}",
+                                {"signature_of": effect.name, "refitted": effect.name in tried}))
     searches = [
         (ctx.hysteresis, lambda r: r.measured_angle_rad, "the measured angle", ARCSEC, "arcsec"),
         (ctx.te, lambda r: r.output_angle_rad, "the output angle", ARCSEC, "arcsec"),
