@@ -304,7 +304,7 @@ def test_a_step_keeps_the_candidate_that_earns_the_most(monkeypatch):
     monkeypatch.setattr(_loop, "compare", compare)
     monkeypatch.setattr(_loop, "_signatures", signatures)
     monkeypatch.setattr(_loop, "noise_rmse_arcsec", lambda ctx: 1.0)
-    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added, tried: [])
+    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added, tried, trail: [])
     monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
     d = _loop.diagnose(SimpleNamespace(), _loop.DiagnoseOptions(catalog=catalog), seed=0)
     assert [s.effect for s in d.steps] == ["weaker"]
@@ -381,7 +381,7 @@ def test_an_effect_that_contains_another_is_kept_only_when_it_earns_its_keep_ove
     monkeypatch.setattr(_loop, "_signatures", lambda ctx, options, added: [] if added else [
         (e, e.signature(ctx, options.alpha)) for e in options.catalog])
     monkeypatch.setattr(_loop, "noise_rmse_arcsec", lambda ctx: 1.0)
-    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added, tried: [])
+    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added, tried, trail: [])
     monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
     options = _loop.DiagnoseOptions(catalog=catalog, backward=False)
     # the relays gain 5 over the held gap (below the 10 a step must gain): the held gap is kept
@@ -642,7 +642,7 @@ def _stand_in_trail(monkeypatch, strength: dict, elpd):
         (e, e.signature(ctx, options.alpha)) for e in options.catalog if e.name not in added])
     monkeypatch.setattr(_loop, "noise_rmse_arcsec", lambda ctx: 1.0)
     leftovers = []  # the effects refitted on the final model, as the trail tells the leftovers
-    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added, tried: leftovers.append(set(tried)) or [])
+    monkeypatch.setattr(_loop, "_leftovers", lambda ctx, options, added, tried, trail: leftovers.append((set(tried), None if trail is None else sorted(trail))) or [])
     monkeypatch.setattr(_loop, "jump_note", lambda runs: None)
     return tuple(Stand(n) for n in strength), calls, leftovers
 
@@ -729,12 +729,21 @@ def test_the_leftovers_say_whether_a_significant_signature_was_refitted(monkeypa
                                                 lambda effects: 0.0)
     options = _loop.DiagnoseOptions(catalog=catalog, candidates_per_step=2, max_candidates_first_step=2)
     d = _loop.diagnose(SimpleNamespace(), options, seed=0)
-    assert d.steps == [] and leftovers == [{"drift", "gap"}]
-    # the wording of each
+    # ... and the trail's own evidence on the final model (here the base) goes with them
+    assert d.steps == [] and leftovers == [({"drift", "gap"}, ["creep", "drift", "gap"])]
+    # the wording of each: refitted; significant to the trail but not refitted; not significant to
+    # the trail (its noise read otherwise), so never refitted
     monkeypatch.setattr(_loop, "_signatures", lambda ctx, options, added: [
         (e, Evidence(e.name, 40.0, 1, -9.0, 0.2, "a residual")) for e in catalog])
-    out = real_leftovers(SimpleNamespace(hysteresis=[], te=[], runs=[]), options, set(), {"drift", "gap"})
+    trail = {"drift": Evidence("drift", 40.0, 1, -9.0, 0.2, ""), "gap": Evidence("gap", 40.0, 1, -9.0, 0.2, ""),
+             "creep": Evidence("creep", 1.0, 1, -0.4, 0.01, "")}
+    ctx = SimpleNamespace(hysteresis=[], te=[], runs=[])
+    out = real_leftovers(ctx, options, set(), {"drift"}, trail)
     text = {ev.details["signature_of"]: (ev.details["refitted"], ev.description) for ev in out}
     assert text["drift"] == (True, "drift signature still significant (log10 p -9.0) but its extension did not "
                                    "earn its keep: a residual")
-    assert text["creep"][0] is False and "its extension was not refitted on the final model" in text["creep"][1]
+    assert text["gap"][0] is False and "its extension was not refitted on the final model" in text["gap"][1]
+    assert "the trail's own test did not find it (log10 p -0.4" in text["creep"][1] and "never refitted" in text["creep"][1]
+    # without the trail's evidence on the final model (the trail stopped at its limit of effects)
+    out = real_leftovers(ctx, options, set(), set(), None)
+    assert all("its extension was not refitted on the final model" in ev.description for ev in out)

@@ -243,11 +243,13 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
     say(f"fitting the base model ({', '.join(effects) or 'no extensions'})")
     current = base = fit_with(campaign, effects, options, seed)
     steps, rejected, history, removals, dropped = [], [], [], [], set()
+    screened = (None, {})  # the fit the trail's signatures were last read on, and its evidence
     added = set(effects)
     while True:
         while len(steps) < options.max_effects:
             found = _signatures(current.context, options, added)
             history.append([ev for _, ev in found])
+            screened = (current, {effect.name: ev for effect, ev in found})
             # an effect the backward checks dropped is not taken again: the trail would cycle
             candidates = sorted((fe for fe in found if fe[1].significant(options.alpha) and fe[0].name not in dropped),
                                 key=lambda fe: _gain_rank(fe[1]))
@@ -297,10 +299,13 @@ def diagnose(campaign: Campaign, options: DiagnoseOptions = DiagnoseOptions(), s
     final, white = current.context, tuple(r.white_at_bound() for r in current.context.runs)
     if any(w is not r for w, r in zip(white, final.runs)):
         final = replace(final, runs=white)
-    # the leftovers say which of them were refitted on the final model: a signature beyond the
-    # step's refits (or the trail's limit of effects) was never tried, which is not a failed refit
+    # the leftovers say why each was not added: refitted on the final model and not kept; or
+    # never refitted there, because the trail's own test (its noise AR(1), at its bound where the
+    # leftovers read it white) did not find it, or because it lay beyond the step's refits or the
+    # trail's limit of effects — a signature never refitted is not a failed refit
     tried = {s.effect for s in rejected if s.before is current}
-    findings, notes = judge_leftovers(_leftovers(final, options, added, tried), current.rmse_arcsec, noise, options)
+    trail = screened[1] if screened[0] is current else None
+    findings, notes = judge_leftovers(_leftovers(final, options, added, tried, trail), current.rmse_arcsec, noise, options)
     notes += [n for n in (noise_bound_note(current.context.runs), jump_note(current.context.runs)) if n]
     description = "; ".join(ev.description for ev in findings)
     return Diagnosis(base=base, final=current, steps=steps, rejected=rejected, signatures=history,
@@ -615,18 +620,28 @@ def _periodic_search(ctx: FitContext, runs, variable, label: str, unit_scale: fl
                     f"({100 * ev.explained:.1f} % of the residual variance)", {"period": period / unit_scale, "unit": unit})
 
 
-def _leftovers(ctx: FitContext, options: DiagnoseOptions, added: set, tried: set = frozenset()) -> list:
+def _leftovers(ctx: FitContext, options: DiagnoseOptions, added: set, tried: set = frozenset(),
+               trail: dict | None = None) -> list:
     """Structure the final model leaves that no catalog effect explains; ``tried``: the effects
-    refitted on the final model (and not kept there)."""
+    refitted on the final model (and not kept there); ``trail``: the evidence the trail's own
+    signatures read on the final model (None where it did not read them there)."""
     out = []
     for effect, ev in _signatures(ctx, options, added):
-        if ev.significant(options.alpha):
-            why = ("its extension did not earn its keep" if effect.name in tried else
-                   "its extension was not refitted on the final model (beyond the refits a step tries, or the "
+        if not ev.significant(options.alpha):
+            continue
+        seen = None if trail is None or effect.name not in trail else trail[effect.name]
+        if effect.name in tried:
+            why = "its extension did not earn its keep"
+        elif seen is not None and not seen.significant(options.alpha):
+            why = (f"the trail's own test did not find it (log10 p {seen.log10_p:.1f}, the residual's noise read as "
+                   "AR(1) where this test reads it white), so its extension was never refitted")
+        else:
+            why = ("its extension was not refitted on the final model (beyond the refits a step tries, or the "
                    "trail's limit of effects)")
-            out.append(Evidence("unexplained", ev.statistic, ev.dof, ev.log10_p, ev.explained,
-                                f"{effect.name} signature still significant (log10 p {ev.log10_p:.1f}) but {why}: {ev.description}",
-                                {"signature_of": effect.name, "refitted": effect.name in tried}))
+        out.append(Evidence("unexplained", ev.statistic, ev.dof, ev.log10_p, ev.explained,
+                            f"{effect.name} signature still significant (log10 p {ev.log10_p:.1f}) but {why}: {ev.description}",
+                            {"signature_of": effect.name, "refitted": effect.name in tried,
+                             "trail_log10_p": None if seen is None else float(seen.log10_p)}))
     searches = [
         (ctx.hysteresis, lambda r: r.measured_angle_rad, "the measured angle", ARCSEC, "arcsec"),
         (ctx.te, lambda r: r.output_angle_rad, "the output angle", ARCSEC, "arcsec"),
