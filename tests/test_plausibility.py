@@ -86,24 +86,51 @@ def test_measured_loop_without_a_rating_raises_no_warning(write_files):
 # ----------------------------------------------------------------------------- unit slips
 
 
-def test_arcmin_under_a_deg_header_is_caught_60x(tmp_path):
+def without_resolution(path: Path) -> Path:
+    """``path`` (a campaign.toml) with its [instrument] encoder_resolution_arcsec taken out."""
+    text = path.read_text()
+    assert "encoder_resolution_arcsec" in text
+    path.write_text(re.sub(r"encoder_resolution_arcsec = [0-9.]+\n", "", text))
+    return path
+
+
+def test_arcmin_under_a_deg_header_stops_when_the_encoder_step_agrees(tmp_path):
     """paper-large (380 N·m, ~4.4 arcmin at rated): its arcmin column read as degrees twists
-    ~260 arcmin, above the 138 arcmin a 380 N·m reducer can; the encoder step is 60× too."""
+    ~260 arcmin, above the 138 arcmin a 380 N·m reducer can, and moves in steps 60× its declared
+    1″ encoder: both readings say arcmin, so the declaration is contradicted — one line, stop."""
     path = relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_deg")
+    with pytest.raises(InputError) as err:
+        load_campaign(path)
+    message = str(err.value)
+    assert "\n" not in message and "hysteresis-1Nm_per_s.csv" in message and "column 'angle_deg' read as deg" in message
+    assert "60× the [instrument] encoder_resolution_arcsec = 1" in message and "rated torque 380 N·m" in message
+    assert "both fit the column holding arcmin (steps of 1 arcsec, a twist of 4.43 arcmin): declare its unit arcmin" in message
+
+
+def test_arcmin_under_a_deg_header_is_a_warning_on_one_reading_alone(tmp_path):
+    """The same slip without a declared resolution: the twist alone says so, a warning (a twist can
+    be unusual); with the resolution mistyped, the step alone does not stop either."""
+    path = without_resolution(relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_deg"))
     found = plausibility_warnings(path)
     twist = [m for m in found if "twists" in m]
-    steps = [m for m in found if "moves in steps" in m]
-    assert len(twist) == len(steps) == 3  # one of each per hysteresis run
+    assert len(twist) == 3 and not [m for m in found if "moves in steps" in m]  # one per hysteresis run
     assert "hysteresis-1Nm_per_s.csv" in twist[0] and "column 'angle_deg'" in twist[0]
     assert "if the column held arcmin" in twist[0] and "rated torque 380 N·m" in twist[0]
-    assert "60× the [instrument] encoder_resolution_arcsec = 1" in steps[0]
+    # the resolution 7× off the step: no unit factor, no stop (the step warning is for 20× and more)
+    text = path.read_text().replace("[instrument]\n", "[instrument]\nencoder_resolution_arcsec = 7.0\n", 1)
+    assert "encoder_resolution_arcsec = 7.0" in text
+    path.write_text(text)
+    assert len([m for m in plausibility_warnings(path) if "twists" in m]) == 3
 
 
 def test_deg_under_an_arcmin_header_is_caught_60x(tmp_path):
-    """The other way: the angles 60× too small make a twist of ~0.07 arcmin at 380 N·m."""
+    """The other way: the angles 60× too small make a twist of ~0.07 arcmin at 380 N·m; with the
+    encoder step agreeing (1/60″ against 1″) it stops, on the twist alone it warns."""
     path = relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_arcmin",
                       values=lambda cell: repr(float(cell) / 60.0))
-    twist = [m for m in plausibility_warnings(path) if "twists" in m]
+    with pytest.raises(InputError, match="both fit the column holding deg"):
+        load_campaign(path)
+    twist = [m for m in plausibility_warnings(without_resolution(path)) if "twists" in m]
     assert len(twist) == 3
     assert f"{TWIST_MIN_ARCMIN:g}–138 arcmin" in twist[0]
 
@@ -112,7 +139,7 @@ def test_arcsec_under_a_deg_header_is_caught_3600x(tmp_path):
     """paper-small (1 N·m, a soft ~125 arcmin at rated) values ×60 under angle_deg: 3600×."""
     path = relabelled(tmp_path, "paper-small", "angle_arcmin", "angle_deg",
                       values=lambda cell: repr(float(cell) * 60.0))  # the arcsec number
-    twist = [m for m in plausibility_warnings(path) if "twists" in m]
+    twist = [m for m in plausibility_warnings(without_resolution(path)) if "twists" in m]
     assert len(twist) == 3 and "if the column held arcsec" in twist[0]
 
 
@@ -160,6 +187,28 @@ def test_the_readmes_rounded_resolution_on_a_measured_loop_is_caught(write_files
     text = re.sub(r"encoder_resolution_arcsec = [0-9.]+", "encoder_resolution_arcsec = 57.6", text)
     found = plausibility_warnings(write_files({"campaign.toml": text}))
     assert len(found) == 1 and "steps of 19.78 arcsec, finer than" in found[0], found
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="measured data ../shared/data/cycloidal-jv is absent")
+def test_a_measured_loop_in_degrees_declared_in_revolutions_stops(tmp_path, write_files):
+    """REAL measured loop whose POSITION (output revolutions) is written in degrees, as another
+    bench's export might: its 19.78″ encoder steps become 360× the declared resolution and its
+    twist 360× a printed reducer's; the reader stops naming the column and the unit both fit."""
+    import gzip
+
+    lines = gzip.open(SHARED / "split-pccf" / "preload3-pos5.csv.gz", "rt").read().splitlines()
+    k = lines[0].split(",").index("POSITION")
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        row[k] = repr(float(row[k]) * 360.0)
+    (tmp_path / "loop.csv").write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    text = (EXAMPLES / "split-pccf-preload3-pos5.toml").read_text()
+    text = re.sub(r'file = ".*"', f'file = "{(tmp_path / "loop.csv").as_posix()}"', text)
+    with pytest.raises(InputError) as err:
+        load_campaign(write_files({"campaign.toml": text}))
+    message = str(err.value)
+    assert "column 'POSITION' read as rev" in message and "360× the [instrument] encoder_resolution_arcsec" in message
+    assert "declare its unit deg" in message
 
 
 def test_an_input_angle_not_divided_by_the_ratio_is_named(tmp_path):
@@ -394,12 +443,19 @@ def test_te_direction_of_a_campaign_file(tmp_path):
 
 
 def test_cli_prints_each_warning_on_one_line(tmp_path, capsys):
-    path = relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_deg")
+    path = without_resolution(relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_deg"))
     assert main(["metrics", str(path), "--json"]) == 0
     err = capsys.readouterr().err
     lines = [line for line in err.splitlines() if line.startswith("torsionfit metrics: warning: ")]
-    assert len(lines) == 6 and all("angle_deg" in line for line in lines)
+    assert len(lines) == 3 and all("angle_deg" in line for line in lines)
     assert "PlausibilityWarning" not in err and "warnings.warn" not in err
+
+
+def test_cli_stops_with_one_line_when_the_angle_unit_is_contradicted(tmp_path, capsys):
+    path = relabelled(tmp_path, "paper-large", "angle_arcmin", "angle_deg")
+    assert main(["metrics", str(path), "--json"]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1 and err[0].startswith("torsionfit metrics: error: ") and "declare its unit arcmin" in err[0]
 
 
 # ----------------------------------------------------------------------------- decimal comma

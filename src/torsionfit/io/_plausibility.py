@@ -35,6 +35,7 @@ import warnings
 import numpy as np
 
 from .. import units
+from .._errors import InputError
 
 ARCMIN = units.ANGLE_UNITS["arcmin"]
 ARCSEC = units.ANGLE_UNITS["arcsec"]
@@ -159,6 +160,46 @@ def check_encoder_step(angle_rad, resolution_arcsec: float | None, where: str, c
     warn(f"{where}: column {column!r} moves in steps of {q / ARCSEC:.4g} arcsec, {ratio:.4g}× "
          f"the [instrument] encoder_resolution_arcsec = {resolution_arcsec:g}; is the column's "
          f"angle unit (or the resolution) right?")
+
+
+#: how close the encoder step, read in another angle unit, must come to the declared resolution
+#: for the step to say the column holds that unit (a unit factor is exact; 60× and 360× apart)
+UNIT_STEP_TOLERANCE = 0.02
+
+
+def check_angle_unit(torque_Nm, angle_rad, rated_torque_Nm: float | None, resolution_arcsec: float | None,
+                     where: str, column: str, unit: str) -> None:
+    """InputError when two readings of the data agree that the angle column holds another unit
+    than declared: its encoder step, read in that unit, is the declared resolution (within
+    :data:`UNIT_STEP_TOLERANCE`), and its twist at the rated torque (or at the loop's peak) is
+    implausible as declared and plausible in that unit. One reading alone is a warning
+    (:func:`check_hysteresis`, :func:`check_encoder_step`): a twist can be unusual, and a
+    resolution mistyped."""
+    if resolution_arcsec is None:
+        return
+    q = quantisation_step(angle_rad)
+    c = secant_compliance(torque_Nm, angle_rad)
+    if q is None or c is None or c <= 0:
+        return
+    reached = float(np.max(np.abs(torque_Nm)))
+    scale = rated_torque_Nm if rated_torque_Nm is not None else reached
+    twist = c * scale / ARCMIN
+    low, high = twist_band_arcmin(scale)
+    if low <= twist <= high:
+        return
+    ratio = q / ARCSEC / resolution_arcsec
+    declared = units.ANGLE_UNITS[unit]
+    for other, factor in units.ANGLE_UNITS.items():
+        f = factor / declared  # the angle's true size over its size as read, if the column held `other`
+        if other == unit or abs(ratio * f - 1.0) > UNIT_STEP_TOLERANCE or not low <= twist * f <= high:
+            continue
+        at = f"the rated torque {scale:.4g} N·m" if rated_torque_Nm is not None else f"its peak {scale:.4g} N·m"
+        raise InputError(
+            f"{where}: column {column!r} read as {unit} moves in steps of {q / ARCSEC:.4g} arcsec, {ratio:.4g}× the "
+            f"[instrument] encoder_resolution_arcsec = {resolution_arcsec:g}, and twists {twist:.3g} arcmin at {at}, "
+            f"where a reducer twists {low:g}–{high:.3g} arcmin; both fit the column holding {other} (steps of "
+            f"{q * f / ARCSEC:.4g} arcsec, a twist of {twist * f:.3g} arcmin): declare its unit {other} (the column "
+            f"name's suffix, or angle = \"{other}\" in [runs.units])")
 
 
 def check_te_direction(output_angle_rad, direction: int, where: str, column: str) -> None:
