@@ -189,26 +189,42 @@ def test_the_readmes_rounded_resolution_on_a_measured_loop_is_caught(write_files
     assert len(found) == 1 and "steps of 19.78 arcsec, finer than" in found[0], found
 
 
+def rewritten_measured_loop(tmp_path, write_files, column: str, factor: float) -> Path:
+    """The manifest of REAL measured loop split preload3-pos5 reading a copy of its file in
+    ``tmp_path`` (never in the repository) with ``column`` multiplied by ``factor``."""
+    import gzip
+
+    lines = gzip.open(SHARED / "split-pccf" / "preload3-pos5.csv.gz", "rt").read().splitlines()
+    k = lines[0].split(",").index(column)
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        row[k] = repr(float(row[k]) * factor)
+    (tmp_path / "loop.csv").write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
+    text = (EXAMPLES / "split-pccf-preload3-pos5.toml").read_text()
+    text = re.sub(r'file = ".*"', f'file = "{(tmp_path / "loop.csv").as_posix()}"', text)
+    return write_files({"campaign.toml": text})
+
+
 @pytest.mark.skipif(not SHARED.is_dir(), reason="measured data ../shared/data/cycloidal-jv is absent")
 def test_a_measured_loop_in_degrees_declared_in_revolutions_stops(tmp_path, write_files):
     """REAL measured loop whose POSITION (output revolutions) is written in degrees, as another
     bench's export might: its 19.78″ encoder steps become 360× the declared resolution and its
     twist 360× a printed reducer's; the reader stops naming the column and the unit both fit."""
-    import gzip
-
-    lines = gzip.open(SHARED / "split-pccf" / "preload3-pos5.csv.gz", "rt").read().splitlines()
-    k = lines[0].split(",").index("POSITION")
-    rows = [line.split(",") for line in lines[1:]]
-    for row in rows:
-        row[k] = repr(float(row[k]) * 360.0)
-    (tmp_path / "loop.csv").write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
-    text = (EXAMPLES / "split-pccf-preload3-pos5.toml").read_text()
-    text = re.sub(r'file = ".*"', f'file = "{(tmp_path / "loop.csv").as_posix()}"', text)
     with pytest.raises(InputError) as err:
-        load_campaign(write_files({"campaign.toml": text}))
+        load_campaign(rewritten_measured_loop(tmp_path, write_files, "POSITION", 360.0))
     message = str(err.value)
     assert "column 'POSITION' read as rev" in message and "360× the [instrument] encoder_resolution_arcsec" in message
     assert "declare its unit deg" in message
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="measured data ../shared/data/cycloidal-jv is absent")
+def test_a_measured_loop_in_newton_millimetres_declared_in_newton_metres_stops(tmp_path, write_files):
+    """REAL measured loop whose TORQUE is written in N·mm: a peak of 40 000 N·m against the
+    assumed 20 N·m rating and a twist of 0.1 arcmin at it agree on N·mm."""
+    with pytest.raises(InputError) as err:
+        load_campaign(rewritten_measured_loop(tmp_path, write_files, "TORQUE", 1000.0))
+    message = str(err.value)
+    assert "column 'TORQUE' read as Nm reaches" in message and "declare its unit Nmm" in message
 
 
 def test_an_input_angle_not_divided_by_the_ratio_is_named(tmp_path):
@@ -222,16 +238,27 @@ def test_an_input_angle_not_divided_by_the_ratio_is_named(tmp_path):
 
 
 def test_torque_in_Nmm_under_a_Nm_header_is_caught(tmp_path):
-    """Warned about by the peak load; with a loading rate declared, the ramps' rate contradicts
-    it and the run stops, naming the torque column with the time column."""
+    """With a loading rate declared, the ramps' rate contradicts it and the run stops, naming the
+    torque column with the time column; without, the peak load (2000× the rating) and the twist
+    (0.004 arcmin at it) agree on N·mm and it stops naming the unit both fit; with a rating that
+    makes the twist plausible as read, the peak alone is a warning."""
     path = relabelled(tmp_path, "paper-large", "torque_Nm", "torque_Nm",
                       values=lambda cell: repr(float(cell) * 1000.0))
     with pytest.raises(InputError, match=r"column 'torque_Nm' ramps at .* 99\d\.\d× faster than the declared "
                                          r"loading_rate_Nm_per_s .*column 'torque_Nm' \(read in Nm\)"):
         load_campaign(path)
-    text = path.read_text()
-    path.write_text(re.sub(r"loading_rate_Nm_per_s = [0-9.]+\n", "", text))
-    peak = [m for m in plausibility_warnings(path) if "reaches |torque|" in m]
+    text = re.sub(r"loading_rate_Nm_per_s = [0-9.]+\n", "", path.read_text())
+    path.write_text(text)
+    with pytest.raises(InputError) as err:
+        load_campaign(path)
+    message = str(err.value)
+    assert "column 'torque_Nm' read as Nm reaches" in message and "rated torque 380 N·m" in message
+    assert "both fit the column holding Nmm" in message and "declare its unit Nmm" in message
+    # rated at 1 N·m, the twist as read (about 0.01 arcmin) is still implausible but no smaller
+    # unit brings the peak (about 380 000 N·m read) within 10× the rating: warnings only
+    path.write_text(re.sub(r"rated_torque_Nm = [0-9.]+", "rated_torque_Nm = 1.0", text))
+    found = plausibility_warnings(path)
+    peak = [m for m in found if "reaches |torque|" in m]
     assert len(peak) == 3 and "column 'torque_Nm'" in peak[0] and "N·mm" in peak[0]
 
 

@@ -202,6 +202,37 @@ def check_angle_unit(torque_Nm, angle_rad, rated_torque_Nm: float | None, resolu
             f"name's suffix, or angle = \"{other}\" in [runs.units])")
 
 
+def check_torque_unit(torque_Nm, angle_rad, rated_torque_Nm: float | None, where: str, column: str,
+                      unit: str) -> None:
+    """InputError when the torque's peak and the loop's twist agree that the torque column holds
+    a smaller unit than declared (N·mm read as N·m): the peak is beyond :data:`PEAK_TORQUE_LIMIT`
+    × the rated torque and the twist at it implausible, and in that unit the peak lies within
+    the bench's range (up to that limit) and the twist is plausible. One reading alone is a
+    warning (:func:`check_hysteresis`)."""
+    if rated_torque_Nm is None:
+        return
+    reached = float(np.max(np.abs(torque_Nm)))
+    c = secant_compliance(torque_Nm, angle_rad)
+    if reached <= PEAK_TORQUE_LIMIT * rated_torque_Nm or c is None or c <= 0:
+        return
+    twist = c * rated_torque_Nm / ARCMIN
+    low, high = twist_band_arcmin(rated_torque_Nm)
+    if low <= twist <= high:
+        return
+    declared = units.TORQUE_UNITS[unit]
+    for other, factor in units.TORQUE_UNITS.items():
+        f = factor / declared  # the torque's true size over its size as read, if the column held `other`
+        # read f times too small a torque, the compliance reads f times too small
+        if f >= 1.0 or reached * f > PEAK_TORQUE_LIMIT * rated_torque_Nm or not low <= twist / f <= high:
+            continue
+        raise InputError(
+            f"{where}: column {column!r} read as {unit} reaches |torque| = {reached:.4g} N·m, "
+            f"{reached / rated_torque_Nm:.3g}× the rated torque {rated_torque_Nm:.4g} N·m, and the loop twists "
+            f"{twist:.3g} arcmin at it, where a reducer twists {low:g}–{high:.3g} arcmin; both fit the column holding "
+            f"{other} (a peak of {reached * f:.4g} N·m, a twist of {twist / f:.3g} arcmin): declare its unit {other} "
+            f"(the column name's suffix, or torque = \"{other}\" in [runs.units])")
+
+
 def check_te_direction(output_angle_rad, direction: int, where: str, column: str) -> None:
     """Warn when the output angle runs against the declared ``direction`` (+1 forward)."""
     d = np.diff(np.asarray(output_angle_rad, float))

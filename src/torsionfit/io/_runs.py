@@ -10,7 +10,7 @@ from .._errors import InputError
 from ._campaign import HysteresisRun, Reducer, TransmissionErrorRun
 from ._columns import resolve_columns
 from ._convention import check_twist_sign
-from ._plausibility import check_angle_unit, check_encoder_step, check_hysteresis, check_te_direction
+from ._plausibility import check_angle_unit, check_encoder_step, check_hysteresis, check_te_direction, check_torque_unit
 from ._read import Table, drop_trailing_pad, read_table, rows_passing, select_rows
 from ._time_scale import check_loading_rate, check_te_speed
 from ._wrap import unwrap_full_turns
@@ -144,6 +144,7 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
                      spec.torque_sign)
     check_angle_unit(torque, angle, reducer.rated_torque_Nm, spec.encoder_resolution_arcsec, where,
                      found["angle"].name, found["angle"].unit)
+    check_torque_unit(torque, angle, reducer.rated_torque_Nm, where, found["torque"].name, found["torque"].unit)
     # after the errors: a warning is for data that read cleanly
     check_hysteresis(torque, angle, reducer.rated_torque_Nm, where, found["angle"].name,
                      found["angle"].unit, found["torque"].name, reducer.ratio)
