@@ -254,6 +254,7 @@ def test_torque_in_Nmm_under_a_Nm_header_is_caught(tmp_path):
     message = str(err.value)
     assert "column 'torque_Nm' read as Nm reaches" in message and "rated torque 380 N·m" in message
     assert "both fit the column holding Nmm" in message and "declare its unit Nmm" in message
+    assert "or, if the column is right, [reducer] rated_torque_Nm is 1000× too small" in message
     # rated at 1 N·m, the twist as read (about 0.01 arcmin) is still implausible but no smaller
     # unit brings the peak (about 380 000 N·m read) within 10× the rating: warnings only
     path.write_text(re.sub(r"rated_torque_Nm = [0-9.]+", "rated_torque_Nm = 1.0", text))

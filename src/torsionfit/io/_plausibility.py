@@ -230,7 +230,8 @@ def check_torque_unit(torque_Nm, angle_rad, rated_torque_Nm: float | None, where
             f"{reached / rated_torque_Nm:.3g}× the rated torque {rated_torque_Nm:.4g} N·m, and the loop twists "
             f"{twist:.3g} arcmin at it, where a reducer twists {low:g}–{high:.3g} arcmin; both fit the column holding "
             f"{other} (a peak of {reached * f:.4g} N·m, a twist of {twist / f:.3g} arcmin): declare its unit {other} "
-            f"(the column name's suffix, or torque = \"{other}\" in [runs.units])")
+            f"(the column name's suffix, or torque = \"{other}\" in [runs.units]), or, if the column is right, "
+            f"[reducer] rated_torque_Nm is {1 / f:g}× too small")
 
 
 def check_te_direction(output_angle_rad, direction: int, where: str, column: str) -> None:
