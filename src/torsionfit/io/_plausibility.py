@@ -86,6 +86,17 @@ def secant_compliance(torque_Nm: np.ndarray, angle_rad: np.ndarray) -> float | N
     return float(np.median(theta[top]) - np.median(theta[bottom])) / d_tau
 
 
+def secant_twist(torque_Nm, angle_rad, rated_torque_Nm: float | None) -> tuple[float, float, float, float] | None:
+    """(twist in arcmin at the rated torque — at the loop's own peak without a rating —, that
+    torque in N·m, and the plausible band's low and high ends in arcmin); None without a rising
+    secant (one-sided, or a reversed angle the sign check stops)."""
+    c = secant_compliance(torque_Nm, angle_rad)
+    if c is None or c <= 0:
+        return None
+    scale = rated_torque_Nm if rated_torque_Nm is not None else float(np.max(np.abs(torque_Nm)))
+    return (c * scale / ARCMIN, scale, *twist_band_arcmin(scale))
+
+
 def check_hysteresis(torque_Nm, angle_rad, rated_torque_Nm, where: str, angle_column: str,
                      angle_unit: str, torque_column: str, ratio: float | None = None) -> None:
     """Warn when the loop's twist at rated torque (or at its own peak, without a rating) or its
@@ -96,16 +107,14 @@ def check_hysteresis(torque_Nm, angle_rad, rated_torque_Nm, where: str, angle_co
         warn(f"{where}: column {torque_column!r} reaches |torque| = {reached:.4g} N·m, "
              f"{reached / rated_torque_Nm:.3g}× the rated torque {rated_torque_Nm:.4g} N·m "
              f"(a bench stays below ~5×); is the torque unit right (N·mm read as N·m is 1000×)?")
-    c = secant_compliance(torque_Nm, angle_rad)
-    if c is None or c <= 0:
+    secant = secant_twist(torque_Nm, angle_rad, rated_torque_Nm)
+    if secant is None:
         return  # a clearly reversed angle stopped the reader already (check_twist_sign)
-    scale = rated_torque_Nm if rated_torque_Nm is not None else reached
+    twist, scale, low, high = secant
     if rated_torque_Nm is not None:
         at, who = f"the rated torque {scale:.4g} N·m", "a reducer of that rating"
     else:  # no rating: the load the bench applied stands in for it
         at, who = f"its peak {scale:.4g} N·m (no rated_torque_Nm)", "a reducer loaded that far"
-    twist = c * scale / ARCMIN
-    low, high = twist_band_arcmin(scale)
     if low <= twist <= high:
         return
     declared = units.ANGLE_UNITS[angle_unit]
@@ -118,7 +127,7 @@ def check_hysteresis(torque_Nm, angle_rad, rated_torque_Nm, where: str, angle_co
                     f"[reducer] ratio = {ratio:g}")
     hint = f" ({'; '.join(fits)})" if fits else ""
     warn(f"{where}: column {angle_column!r} ({angle_unit}) twists {twist:.3g} arcmin at {at} "
-         f"(secant stiffness {1.0 / (c / ARCMIN):.3g} N·m/arcmin); {who} "
+         f"(secant stiffness {scale / twist:.3g} N·m/arcmin); {who} "
          f"twists {low:g}–{high:.3g} arcmin — is the angle unit right?{hint}")
 
 
@@ -178,13 +187,10 @@ def check_angle_unit(torque_Nm, angle_rad, rated_torque_Nm: float | None, resolu
     if resolution_arcsec is None:
         return
     q = quantisation_step(angle_rad)
-    c = secant_compliance(torque_Nm, angle_rad)
-    if q is None or c is None or c <= 0:
+    secant = secant_twist(torque_Nm, angle_rad, rated_torque_Nm)
+    if q is None or secant is None:
         return
-    reached = float(np.max(np.abs(torque_Nm)))
-    scale = rated_torque_Nm if rated_torque_Nm is not None else reached
-    twist = c * scale / ARCMIN
-    low, high = twist_band_arcmin(scale)
+    twist, scale, low, high = secant
     if low <= twist <= high:
         return
     ratio = q / ARCSEC / resolution_arcsec
@@ -212,11 +218,10 @@ def check_torque_unit(torque_Nm, angle_rad, rated_torque_Nm: float | None, where
     if rated_torque_Nm is None:
         return
     reached = float(np.max(np.abs(torque_Nm)))
-    c = secant_compliance(torque_Nm, angle_rad)
-    if reached <= PEAK_TORQUE_LIMIT * rated_torque_Nm or c is None or c <= 0:
+    secant = None if reached <= PEAK_TORQUE_LIMIT * rated_torque_Nm else secant_twist(torque_Nm, angle_rad, rated_torque_Nm)
+    if secant is None:
         return
-    twist = c * rated_torque_Nm / ARCMIN
-    low, high = twist_band_arcmin(rated_torque_Nm)
+    twist, _, low, high = secant
     if low <= twist <= high:
         return
     declared = units.TORQUE_UNITS[unit]
