@@ -629,7 +629,7 @@ def _leftovers(ctx: FitContext, options: DiagnoseOptions, added: set, tried: set
     for effect, ev in _signatures(ctx, options, added):
         if not ev.significant(options.alpha):
             continue
-        seen = None if trail is None or effect.name not in trail else trail[effect.name]
+        seen = (trail or {}).get(effect.name)
         if effect.name in tried:
             why = "its extension did not earn its keep"
         elif seen is not None and not seen.significant(options.alpha):
