@@ -96,6 +96,10 @@ class TransmissionErrorRun:
     nominal_temperature_C: float | None = None
     #: what reading changed (sign convention, dropped pad rows, derived time), shown by ``metrics``
     notes: tuple[str, ...] = ()
+    #: the file column(s) the TE was read from, for messages ("column 'te_arcsec'"; "" when made
+    #: in memory), and their declared angle unit
+    te_column: str = ""
+    te_unit: str = ""
     kind: str = field(default="transmission_error", init=False)
 
     def __len__(self) -> int:

@@ -23,6 +23,7 @@ from ._campaign import Campaign, HysteresisRun, Instrument, Reducer, Transmissio
 from ._columns import CANONICAL
 from ._convention import check_te_convention
 from ._runs import PEAK_FROM_DATA, RunSpec, read_run
+from ._te_twist import check_te_twist
 
 MANIFEST_NAME = "campaign.toml"
 KINDS = ("hysteresis", "transmission_error")
@@ -98,6 +99,7 @@ def load_campaign(path) -> Campaign:
         for spec in specs
     )
     check_te_convention(runs, shown)
+    check_te_twist(runs, reducer.rated_torque_Nm, shown)
     return Campaign(reducer, instrument, runs, path=manifest.resolve(), notes=label)
 
 

@@ -27,6 +27,14 @@ unusual unit is possible, a silent 60× is not acceptable). Thresholds and their
   that far past its momentary rating (~2–5×); N·mm under a ``torque_Nm`` header gives 1000×.
 - **TE direction**: a forward run's output angle increases sample by sample, a backward one's
   decreases (wrap-arounds ignored).
+- **TE load** (an error): a TE run's torque column holds the load it declares in ``torque_Nm``
+  (the load the model uses) within :data:`TE_LOAD_RATIO_LIMIT`× — N·mm read as N·m is 1000×.
+- **TE ratio** (an error): a TE computed as output − input / ratio needs the two columns to turn
+  at ``[reducer] ratio``; a tooth off, one column's unit or an input counting the other way
+  makes the TE drift by degrees every revolution.
+
+The TE's load twist against the loops and the reducer is a campaign's check
+(:mod:`torsionfit.io._te_twist`).
 """
 
 import math
@@ -250,3 +258,91 @@ def check_te_direction(output_angle_rad, direction: int, where: str, column: str
         declared, moving = ("forward", "decreases") if direction > 0 else ("backward", "increases")
         warn(f"{where}: column {column!r} {moving} over the run ({against:.0%} of its steps) but "
              f"direction = {declared!r}; check the direction key or the sign of the angle column")
+
+
+#: a TE run's torque column whose median load is this many times off the declared torque_Nm
+#: (either way) contradicts it: loads drift and ripple by per cents, a torque unit is 1000×
+TE_LOAD_RATIO_LIMIT = 4.0
+
+
+def check_te_torque(torque_series_Nm, declared_Nm: float, rated_torque_Nm: float | None, where: str,
+                    column: str, unit: str) -> None:
+    """InputError when a TE run's torque column reads another load than its declared
+    ``torque_Nm`` (the load the model uses): the median |torque| more than
+    :data:`TE_LOAD_RATIO_LIMIT`× off it, or, for a no-load run, beyond
+    :data:`PEAK_TORQUE_LIMIT` × the rated torque. The message names the torque units under which
+    the two agree."""
+    if torque_series_Nm is None:
+        return
+    tau = np.asarray(torque_series_Nm, float)
+    tau = tau[np.isfinite(tau)]
+    if tau.size == 0:
+        return
+    # a brake's torque may be counted against the motion (negative on a backward run)
+    load = abs(float(np.median(tau)))
+    if declared_Nm > 0:
+        agrees = lambda value: 1.0 / TE_LOAD_RATIO_LIMIT <= value / declared_Nm <= TE_LOAD_RATIO_LIMIT  # noqa: E731
+    elif rated_torque_Nm is not None:  # no load: a drag torque, well below a bench's range
+        agrees = lambda value: value <= PEAK_TORQUE_LIMIT * rated_torque_Nm  # noqa: E731
+    else:
+        return
+    if agrees(load):
+        return
+    declared = units.TORQUE_UNITS[unit]
+    fits = [f"{other} ({load * factor / declared:.4g} N·m)" for other, factor in units.TORQUE_UNITS.items()
+            if other != unit and agrees(load * factor / declared)]
+    hint = (f"the column holding {' or '.join(fits)} agrees with it: declare its unit (the column name's suffix, or "
+            f"torque = \"{fits[0].split()[0]}\" in [runs.units]), or correct torque_Nm") if fits else \
+        "check the column's unit and the declared torque_Nm"
+    raise InputError(f"{where}: column {column!r} (read in {unit}) holds a load of {load:.4g} N·m (the median |torque| "
+                     f"over the run), where the run declares torque_Nm = {declared_Nm:g}, the load the model uses; "
+                     f"{hint}")
+
+
+#: how far the input's turns per output turn may part from [reducer] ratio over a TE run: the
+#: TE's own change moves the slope by at most ~0.5 % (a first-order kinematic error of 1° over
+#: one revolution; a jump across a gap of a few degrees at the start less), a tooth of a ratio
+#: under 100 is ≥ 1 %, an angle unit 57×–3600×
+TE_RATIO_TOLERANCE = 0.01
+
+
+def check_te_ratio(output_angle_rad, input_angle_rad, ratio: float, where: str, output_column: str,
+                   input_column: str, output_unit: str, input_unit: str) -> None:
+    """InputError when a TE run whose TE is output − input / ratio turns its input and output
+    columns in another ratio than ``[reducer] ratio`` (the least-squares slope of the input's
+    turning on the output's, more than :data:`TE_RATIO_TOLERANCE` apart): the TE would drift by
+    the difference every revolution. Steps across an encoder's wrap-around are left out."""
+    d_out, d_in = np.diff(np.asarray(output_angle_rad, float)), np.diff(np.asarray(input_angle_rad, float))
+    if d_out.size < 2:
+        return
+    typical_out, typical_in = np.median(np.abs(d_out)), np.median(np.abs(d_in))
+    # a wrap-around jumps by a turn, hundreds of times a sample's step
+    keep = (np.abs(d_out) <= 100.0 * typical_out) & (np.abs(d_in) <= 100.0 * typical_in)
+    turned_out = np.cumsum(np.where(keep, d_out, 0.0))
+    if not abs(turned_out[-1]) > 0.5 * math.pi:
+        return  # too little turning to read a ratio (the revolution check stops such a run)
+    turned_in = np.cumsum(np.where(keep, d_in, 0.0))
+    # a slope over the whole run: a periodic TE and a jump at the start tilt it less than the ends
+    x = turned_out - turned_out.mean()
+    found = float(np.dot(x, turned_in - turned_in.mean()) / np.dot(x, x))
+    if abs(found / ratio - 1.0) <= TE_RATIO_TOLERANCE:
+        return
+    drift_arcmin = 2.0 * math.pi * abs(1.0 - found / ratio) / ARCMIN  # TE gained per output revolution
+    if found < 0 < ratio and abs(-found / ratio - 1.0) <= TE_RATIO_TOLERANCE:
+        hint = (f"the input turns against the output (a reducer that reverses direction, or an input encoder counting "
+                f"the other way): give the run a te_<unit> column, or negate column {input_column!r}")
+    else:
+        fits = []
+        for other, factor in units.ANGLE_UNITS.items():
+            f = factor / units.ANGLE_UNITS[input_unit]  # the input's true size over its size as read
+            if other != input_unit and abs(found * f / ratio - 1.0) <= TE_RATIO_TOLERANCE:
+                fits.append(f"column {input_column!r} holding {other}")
+        for other, factor in units.ANGLE_UNITS.items():
+            f = factor / units.ANGLE_UNITS[output_unit]
+            if other != output_unit and abs(found / f / ratio - 1.0) <= TE_RATIO_TOLERANCE:
+                fits.append(f"column {output_column!r} holding {other}")
+        hint = (f"{' or '.join(fits)} would turn them at the ratio: declare its unit (the column name's suffix, or "
+                f"[runs.units])" if fits else "check [reducer] ratio and the units of both columns")
+    raise InputError(f"{where}: columns {input_column!r} ({input_unit}) and {output_column!r} ({output_unit}) turn "
+                     f"{found:.5g}:1 over the run, where [reducer] ratio = {ratio:g}; te = output − input / ratio "
+                     f"would drift {drift_arcmin:.4g} arcmin per output revolution; {hint}")

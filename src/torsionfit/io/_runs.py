@@ -10,9 +10,10 @@ from .._errors import InputError
 from ._campaign import HysteresisRun, Reducer, TransmissionErrorRun
 from ._columns import resolve_columns
 from ._convention import check_twist_sign
-from ._plausibility import check_angle_unit, check_encoder_step, check_hysteresis, check_te_direction, check_torque_unit
+from ._plausibility import (check_angle_unit, check_encoder_step, check_hysteresis, check_te_direction, check_te_ratio,
+                            check_te_torque, check_torque_unit)
 from ._read import Table, drop_trailing_pad, read_table, rows_passing, select_rows
-from ._time_scale import check_loading_rate, check_te_speed
+from ._time_scale import check_loading_rate, check_te_speed, check_te_speed_at_rate
 from ._wrap import unwrap_full_turns
 
 #: fewest samples a run may have after selection
@@ -177,13 +178,19 @@ def _transmission_error(spec, reducer, si, time, found, where, notes) -> Transmi
     output = si("output_angle")
     if "te" in found:
         te = si("te")
+        te_column, te_unit = f"column {found['te'].name!r}", found["te"].unit
     else:
+        out_col, in_col = found["output_angle"], found["input_angle"]
         if reducer.ratio is None:
             raise InputError(
-                f"{where}: column {found['input_angle'].name!r} needs [reducer] ratio to compute "
+                f"{where}: column {in_col.name!r} needs [reducer] ratio to compute "
                 f"te = output_angle - input_angle / ratio; add ratio or give a te_<unit> column"
             )
+        check_te_ratio(output, si("input_angle"), reducer.ratio, where, out_col.name, in_col.name, out_col.unit,
+                       in_col.unit)
         te = output - si("input_angle") / reducer.ratio
+        # the TE's size follows the two columns' unit (one unit slipped alone stops above)
+        te_column, te_unit = f"columns {out_col.name!r} and {in_col.name!r}", out_col.unit
     if spec.te_convention == "lag_negative":
         te = -te
         notes.append("TE negated on reading (te_convention = 'lag_negative')")
@@ -205,9 +212,15 @@ def _transmission_error(spec, reducer, si, time, found, where, notes) -> Transmi
         check_te_speed(time, output, speed, where, found["time"].name, found["time"].unit,
                        found["output_angle"].name, found["output_angle"].unit, key)
     if time is None and spec.sample_rate_Hz is not None:
+        key = "speed_rpm" if spec.speed_rpm is not None else "input_speed_rpm / [reducer] ratio"
+        check_te_speed_at_rate(spec.sample_rate_Hz, output, speed, where, found["output_angle"].name,
+                               found["output_angle"].unit, key)
         time = np.arange(len(output)) / spec.sample_rate_Hz
         notes.append(f"time from [instrument] sample_rate_Hz = {spec.sample_rate_Hz:g} (no time column)")
     # otherwise time_s stays None: the model times the run by its speed and angle steps
+    if "torque" in found:
+        check_te_torque(si("torque"), spec.torque_Nm, reducer.rated_torque_Nm, where, found["torque"].name,
+                        found["torque"].unit)
     return TransmissionErrorRun(
         name=spec.name,
         output_angle_rad=output,
@@ -223,4 +236,6 @@ def _transmission_error(spec, reducer, si, time, found, where, notes) -> Transmi
         te_convention=spec.te_convention,
         nominal_temperature_C=spec.temperature_C,
         notes=tuple(notes),
+        te_column=te_column,
+        te_unit=te_unit,
     )

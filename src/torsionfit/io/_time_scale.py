@@ -14,7 +14,8 @@ their own time stamps, so a declared rate the stamps contradict by more than
   rate over the run.
 
 ``[instrument] sample_rate_Hz`` is not checked against a time column: a bench samples a TE
-run by angle and a hysteresis run by time (the bundled campaigns do).
+run by angle and a hysteresis run by time (the bundled campaigns do). A TE run without a time
+column is timed by that rate, so there the rate is checked against the declared speed.
 
 The limit leaves room for nominal rates, a start-up, holds and a sinusoidal ramp (its median
 excursion rate is 2/π of the peak), and none for a unit: ms/s is 1000×, min/s 60×, rad/s
@@ -129,14 +130,37 @@ def check_te_speed(time_s, output_angle_rad, declared_rpm: float, where: str, ti
     declared output speed (rpm) in the run's time stamps (s)."""
     if time_s is None or not declared_rpm > 0:
         return
-    t, phi = np.asarray(time_s, float), np.unwrap(np.asarray(output_angle_rad, float))
-    span_s = float(t[-1] - t[0])
-    if not span_s > 0:
-        return
-    rpm = abs(float(phi[-1] - phi[0])) / span_s * 60.0 / (2.0 * math.pi)
-    if not _off(rpm, declared_rpm):
+    rpm = _mean_rpm(time_s, output_angle_rad)
+    if rpm is None or not _off(rpm, declared_rpm):
         return
     raise InputError(
         f"{where}: column {angle_column!r} turns at {rpm:.4g} rpm by column {time_column!r} (mean over the run), "
         f"{_how_far(rpm, declared_rpm)} the declared output speed {declared_rpm:g} rpm ({key}); "
         f"{_unit_hint(time_column, time_unit, angle_column, angle_unit)}")
+
+
+def check_te_speed_at_rate(sample_rate_Hz: float, output_angle_rad, declared_rpm: float, where: str,
+                           angle_column: str, angle_unit: str, key: str) -> None:
+    """InputError when a TE run without a time column, timed by ``[instrument] sample_rate_Hz``,
+    turns more than :data:`RATE_RATIO_LIMIT`× off the declared output speed: the model would
+    time the run by that rate, so the rate, the speed or the angle unit is wrong."""
+    if not declared_rpm > 0:
+        return
+    rpm = _mean_rpm(np.arange(len(output_angle_rad)) / sample_rate_Hz, output_angle_rad)
+    if rpm is None or not _off(rpm, declared_rpm):
+        return
+    raise InputError(
+        f"{where}: column {angle_column!r} turns at {rpm:.4g} rpm sampled at [instrument] sample_rate_Hz = "
+        f"{sample_rate_Hz:g} (the run has no time column, so that rate times it), "
+        f"{_how_far(rpm, declared_rpm)} the declared output speed {declared_rpm:g} rpm ({key}); check the rate "
+        f"this run was sampled at (give the run a time column if it differs from [instrument]'s), the unit of "
+        f"column {angle_column!r} (read in {angle_unit}), or the declared speed")
+
+
+def _mean_rpm(time_s, output_angle_rad) -> float | None:
+    """The output's mean speed over the run (rpm), None over no time."""
+    t, phi = np.asarray(time_s, float), np.unwrap(np.asarray(output_angle_rad, float))
+    span_s = float(t[-1] - t[0])
+    if not span_s > 0:
+        return None
+    return abs(float(phi[-1] - phi[0])) / span_s * 60.0 / (2.0 * math.pi)
