@@ -827,6 +827,39 @@ def test_measured_whole_file_run_gives_every_metric(tmp_path):
 
 
 @needs_jv
+def test_a_measured_file_exported_as_another_bench_writes_it_gives_the_same_metrics(tmp_path):
+    """REAL baseline initial-pos1 rewritten in a temporary folder as another bench would export
+    it — time in ms, the angle in degrees counted the other way from another zero, the torque in
+    N·mm, ';' between fields — and declared so (the column suffixes, ``angle_sign = -1``): every
+    metric as from the file as published, without a warning."""
+    import gzip
+    import warnings
+
+    from torsionfit.io import load_campaign
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "cycloidal-jv" / "baseline-pccf-initial-pos1.toml"
+    published = example.read_text().replace('file = "../../../shared/data', f'file = "{JV.parent.as_posix()}')
+    (tmp_path / "published.toml").write_text(published)
+    lines = gzip.open(JV / "baseline-pccf" / "initial-pos1.csv.gz", "rt").read().splitlines()
+    names = lines[0].split(",")
+    t, pos, tau, nr = (names.index(k) for k in ("TIME", "POSITION", "TORQUE", "test_nr"))
+    rows = [line.split(",") for line in lines[1:]]
+    (tmp_path / "export.csv").write_text("time_ms;angle_deg;torque_Nmm;test_nr\n" + "".join(
+        f"{float(r[t]) * 1e3!r};{123.4 - float(r[pos]) * 360.0!r};{float(r[tau]) * 1e3!r};{r[nr]}\n" for r in rows))
+    (tmp_path / "export.toml").write_text(
+        'label = "REAL MEASURED DATA rewritten (CC BY-SA 4.0)"\n[reducer]\nname = "jv"\nrated_torque_Nm = 20.0\n'
+        "[instrument]\nencoder_resolution_arcsec = 19.775390625\n"
+        '[[runs]]\nname = "initial-pos1"\nkind = "hysteresis"\nfile = "export.csv"\nangle_sign = -1\n')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ours = campaign_metrics(load_campaign(tmp_path / "export.toml"))["runs"][0]["metrics"]
+    theirs = campaign_metrics(load_campaign(tmp_path / "published.toml"))["runs"][0]["metrics"]
+    assert set(ours) == set(theirs)
+    for key in theirs:
+        assert value(ours, key) == pytest.approx(value(theirs, key), rel=1e-6, abs=1e-9), key
+
+
+@needs_jv
 def test_measured_play_ramps_alone_are_read_when_declared_partial_load(tmp_path):
     """The five play ramps of a measured file (test_nr 0–4, ±4–6 N·m of a reducer rated 20):
     without a declaration the rated torque's reach stops them with one line naming
