@@ -24,6 +24,8 @@ WITH_LOOPS = BENCHES / "effects" / "te_temperature.toml"
 #: the same without loops
 TE_ONLY = BENCHES / "stat_te_only.toml"
 EXPORT = BENCHES / "te_export.toml"
+#: a printed-reducer-like unit: its gap and friction make up most of the TE's twist at low load
+PRINTED = BENCHES / "te_printed.toml"
 
 
 def _written(tmp_path, bench_file: Path, seed: int = 0) -> Path:
@@ -50,12 +52,23 @@ def _rewrite_te_files(manifest: Path, header_from: str, header_to: str, column: 
         path.write_text("\n".join(lines[:head + 1] + [",".join(r) for r in rows]) + "\n")
 
 
-@pytest.mark.parametrize("bench_file", [WITH_LOOPS, TE_ONLY, EXPORT, BENCHES / "effects" / "te_speed.toml",
+@pytest.mark.parametrize("bench_file", [WITH_LOOPS, TE_ONLY, EXPORT, PRINTED, BENCHES / "effects" / "te_speed.toml",
                                         BENCHES / "effects" / "te_kinematic.toml",
                                         BENCHES.parent.parent / "examples" / "accept" / "line-bench.toml"])
 @pytest.mark.parametrize("seed", [0, 3])
 def test_te_campaigns_as_written_read_without_a_word(tmp_path, bench_file, seed):
     assert plausibility_warnings(_written(tmp_path, bench_file, seed)) == []
+
+
+def test_a_printed_units_te_at_a_quarter_of_its_rating_alone_reads_without_a_word(tmp_path):
+    """Without the loop and the rated-load pair, the TE at 5 of 20 N·m twists about 2.5× its
+    elastic share (gap and friction over the load): still inside the band, not a unit slip."""
+    manifest = _written(tmp_path, PRINTED)
+    blocks = manifest.read_text().split("[[runs]]")
+    kept = [b for b in blocks[1:] if 'name = "te-5-' in b]
+    assert len(kept) == 2
+    manifest.write_text("[[runs]]".join([blocks[0]] + kept))
+    assert plausibility_warnings(manifest) == []
 
 
 def test_te_in_arcsec_declared_arcmin_beside_loops_stops_naming_arcsec(tmp_path):

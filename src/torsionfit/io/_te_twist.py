@@ -19,8 +19,8 @@ direction and convention checks do not see it. Two readings of it:
   naming the units under which it is plausible.
 
 Only pairs loaded to at least :data:`TE_LOAD_SHARE` of the rating (or, without one, of the
-campaign's largest TE load) whose difference clears the noise count: nearer no load the friction
-and the gap make up most of h.
+campaign's largest TE load) whose difference clears the noise count, and of those the most
+loaded: nearer no load the friction and the gap make up most of h.
 """
 
 import math
@@ -77,6 +77,9 @@ def check_te_twist(runs, rated_torque_Nm: float | None, where: str) -> None:
     read = list(_pairs(te_runs, stats, TE_LOAD_SHARE * scale))
     if not read:
         return
+    # the most loaded pairs: the friction and half the lost motion weigh least in h / τ there
+    top = max(fw.torque_Nm for fw, _, _ in read)
+    read = [pair for pair in read if pair[0].torque_Nm == top]
     c_te = float(np.median([c for *_, c in read]))
     fw, bw = read[int(np.argsort([c for *_, c in read])[len(read) // 2])][:2]
     column = fw.te_column or "the TE"
