@@ -125,6 +125,15 @@ def test_te_load_declared_ten_times_too_small_stops(tmp_path):
         load_campaign(manifest)
 
 
+def test_te_torque_column_of_the_motor_stops_naming_the_ratio(tmp_path):
+    """A bench that logs the motor's torque, the load over the ratio (121): no unit explains it,
+    the ratio does."""
+    manifest = _written(tmp_path, WITH_LOOPS)
+    _rewrite_te_files(manifest, "torque_Nm", "torque_Nm", column="torque_Nm", scale=1.0 / 121.0)
+    with pytest.raises(InputError, match=r"the declared load over \[reducer\] ratio = 121 .* input \(motor\) torque"):
+        load_campaign(manifest)
+
+
 def test_te_run_timed_by_another_rate_stops_naming_sample_rate(tmp_path):
     """The export has no time column: [instrument] sample_rate_Hz times it, and at a tenth of
     the logger's rate the output would turn at 0.6 rpm, not 6."""

@@ -266,12 +266,12 @@ TE_LOAD_RATIO_LIMIT = 4.0
 
 
 def check_te_torque(torque_series_Nm, declared_Nm: float, rated_torque_Nm: float | None, where: str,
-                    column: str, unit: str) -> None:
+                    column: str, unit: str, ratio: float | None = None) -> None:
     """InputError when a TE run's torque column reads another load than its declared
     ``torque_Nm`` (the load the model uses): the median |torque| more than
     :data:`TE_LOAD_RATIO_LIMIT`× off it, or, for a no-load run, beyond
     :data:`PEAK_TORQUE_LIMIT` × the rated torque. The message names the torque units under which
-    the two agree."""
+    the two agree, or, with the reducer's ``ratio``, a column holding the input (motor) torque."""
     if torque_series_Nm is None:
         return
     tau = np.asarray(torque_series_Nm, float)
@@ -294,6 +294,10 @@ def check_te_torque(torque_series_Nm, declared_Nm: float, rated_torque_Nm: float
     hint = (f"the column holding {' or '.join(fits)} agrees with it: declare its unit (the column name's suffix, or "
             f"torque = \"{fits[0].split()[0]}\" in [runs.units]), or correct torque_Nm") if fits else \
         "check the column's unit and the declared torque_Nm"
+    if not fits and ratio and ratio > 1 and declared_Nm > 0 and agrees(load * ratio):
+        # a TE bench may log the motor's torque: the output's over the ratio (and the efficiency)
+        hint = (f"it is the declared load over [reducer] ratio = {ratio:g} ({load * ratio:.4g} N·m at the output): if "
+                f"the column holds the input (motor) torque, map the output torque as 'torque' or leave the column out")
     raise InputError(f"{where}: column {column!r} (read in {unit}) holds a load of {load:.4g} N·m (the median |torque| "
                      f"over the run), where the run declares torque_Nm = {declared_Nm:g}, the load the model uses; "
                      f"{hint}")

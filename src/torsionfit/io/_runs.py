@@ -220,7 +220,7 @@ def _transmission_error(spec, reducer, si, time, found, where, notes) -> Transmi
     # otherwise time_s stays None: the model times the run by its speed and angle steps
     if "torque" in found:
         check_te_torque(si("torque"), spec.torque_Nm, reducer.rated_torque_Nm, where, found["torque"].name,
-                        found["torque"].unit)
+                        found["torque"].unit, reducer.ratio)
     return TransmissionErrorRun(
         name=spec.name,
         output_angle_rad=output,
