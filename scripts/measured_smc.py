@@ -64,19 +64,22 @@ def _progress_lines(unit: str) -> None:
 
 
 def _chain_path(output: Path, unit: str, particles: int, seed: int, optima_mixture: bool,
-                gap_prior_from_crossings: bool, final_max_moves: int) -> Path:
+                gap_prior_from_crossings: bool, final_max_moves: int, max_moves: int = DEFAULT_MAX_MOVES) -> Path:
     """The fit's ``backend_path`` for SMC: its checkpoint is ``<this stem>-smc.npz``, one per loop
     and settings (a run of other settings neither reads nor overwrites it)."""
-    tags = [f"p{particles}", f"s{seed}", f"m{final_max_moves}"] + (["mixture"] if optima_mixture else []) + (
+    tags = [f"p{particles}", f"s{seed}", f"m{final_max_moves}"] + (
+        [f"a{max_moves}"] if max_moves != DEFAULT_MAX_MOVES else []) + (["mixture"] if optima_mixture else []) + (
         ["gap-prior"] if gap_prior_from_crossings else [])
     return output / "checkpoints" / f"{unit}-{'-'.join(tags)}.h5"
 
 
 def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | None = None,
               optima_mixture: bool = False, progress: bool = False, gap_prior_from_crossings: bool = False,
-              final_max_moves: int = DEFAULT_MAX_MOVES, resume: bool = True) -> dict:
+              final_max_moves: int = DEFAULT_MAX_MOVES, resume: bool = True,
+              max_moves: int = DEFAULT_MAX_MOVES) -> dict:
     """Fit one loop both ways and write its row at once (a run stopped part-way keeps its done loops).
-    ``final_max_moves``: SMC's moves allowed at its last stage (β = 1). The SMC run keeps its state
+    ``final_max_moves``: SMC's moves allowed at its last stage (β = 1), ``max_moves`` at every
+    stage (the last gets the larger of the two). The SMC run keeps its state
     after every stage in ``output/checkpoints/`` (removed once the row is written); ``resume``: a
     run stopped part-way goes on from there (False: starts afresh).
     ``optima_mixture``: both start from the mixture over the optima (FitOptions.optima_mixture);
@@ -91,13 +94,15 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
     draws_of, names = {}, []
     if progress:
         _progress_lines(unit)
-    chain = _chain_path(output, unit, particles, seed, optima_mixture, gap_prior_from_crossings, final_max_moves)
+    chain = _chain_path(output, unit, particles, seed, optima_mixture, gap_prior_from_crossings, final_max_moves,
+                        max_moves)
     chain.parent.mkdir(parents=True, exist_ok=True)
     with torsionfit.float64(), tempfile.TemporaryDirectory() as folder:
         train = load_campaign(mv.manifest(unit, [r for r in ramps if r < last], Path(folder), None))
         for sampler in ("laplace", "smc"):
             options = dataclasses.replace(mv.fit_options(args, unit), sampler=sampler, smc_particles=particles,
-                                          smc_final_max_moves=final_max_moves, progress=progress,
+                                          smc_max_moves=max_moves, smc_final_max_moves=final_max_moves,
+                                          progress=progress,
                                           **({"backend_path": str(chain), "resume": resume} if sampler == "smc" else {}))
             t0 = time.perf_counter()
             fit = fit_campaign(train, options, seed=seed)
@@ -129,6 +134,8 @@ def _fit_both(unit: str, particles: int, seed: int, output: Path, draws: Path | 
         out["gap_prior_from_crossings"] = True
     if final_max_moves != DEFAULT_MAX_MOVES:
         out["final_max_moves"] = final_max_moves
+    if max_moves != DEFAULT_MAX_MOVES:
+        out["max_moves"] = max_moves
     path = _row_path(output, unit)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1, default=float))
@@ -150,8 +157,10 @@ def kernel_settings() -> dict:
 def kernel_text(row: dict) -> str:
     """The row's HMC moves in a few words: mean leapfrog steps per move over its stages."""
     steps = row["smc"].get("smc_leapfrog_steps")
-    final = (f", {row['final_max_moves']} moves allowed at β = 1" if row.get("final_max_moves", DEFAULT_MAX_MOVES)
-             != DEFAULT_MAX_MOVES else "")
+    every = row.get("max_moves", DEFAULT_MAX_MOVES)
+    last = max(row.get("final_max_moves", DEFAULT_MAX_MOVES), every)
+    final = (f", {every} moves allowed at every stage" if every != DEFAULT_MAX_MOVES else "") + (
+        f", {last} moves allowed at β = 1" if last != every else "")
     if row.get("kernel") is None or not steps:
         return "8, one step" + final
     return f"{np.mean(steps):.0f}, drawn steps" + final
@@ -169,15 +178,17 @@ def departure(split_normal: np.ndarray, particles: np.ndarray, names: list[str])
 
 
 def _done_row(output: Path, unit: str, particles: int, seed: int, optima_mixture: bool = False,
-              gap_prior_from_crossings: bool = False, final_max_moves: int = DEFAULT_MAX_MOVES) -> dict | None:
+              gap_prior_from_crossings: bool = False, final_max_moves: int = DEFAULT_MAX_MOVES,
+              max_moves: int = DEFAULT_MAX_MOVES) -> dict | None:
     """The row a previous run wrote for this unit with the same settings, else None."""
     path = _row_path(output, unit)
     if not path.is_file():
         return None
     row = json.loads(path.read_text())
     same = ((row.get("particles"), row.get("seed"), row.get("optima_mixture", False),
-             row.get("gap_prior_from_crossings", False), row.get("final_max_moves", DEFAULT_MAX_MOVES))
-            == (particles, seed, optima_mixture, gap_prior_from_crossings, final_max_moves))
+             row.get("gap_prior_from_crossings", False), row.get("final_max_moves", DEFAULT_MAX_MOVES),
+             row.get("max_moves", DEFAULT_MAX_MOVES))
+            == (particles, seed, optima_mixture, gap_prior_from_crossings, final_max_moves, max_moves))
     return row if same else None
 
 
@@ -278,6 +289,9 @@ def main(argv=None) -> int:
     p.add_argument("--final-moves", type=int, default=DEFAULT_MAX_MOVES,
                    help=f"SMC's moves allowed at its last stage, β = 1 (default {DEFAULT_MAX_MOVES}, as at the stages "
                         "before it; such rows are their own)")
+    p.add_argument("--max-moves", type=int, default=DEFAULT_MAX_MOVES,
+                   help=f"SMC's moves allowed at every stage (default {DEFAULT_MAX_MOVES}; the last gets the larger of "
+                        "this and --final-moves; such rows are their own)")
     p.add_argument("--progress", action="store_true", help="print the fits' progress (the SMC stages) on stderr")
     p.add_argument("--force", action="store_true",
                    help="refit loops whose row a previous run with the same settings wrote (default: reuse it), "
@@ -294,7 +308,8 @@ def main(argv=None) -> int:
         return 0
     args.output.mkdir(parents=True, exist_ok=True)
     done = {u: None if args.force else _done_row(args.output, u, args.particles, args.seed, args.optima_mixture,
-                                                 args.gap_prior_from_crossings, args.final_moves) for u in args.units}
+                                                 args.gap_prior_from_crossings, args.final_moves, args.max_moves)
+            for u in args.units}
     todo = [u for u in args.units if done[u] is None]
     for u in args.units:
         if done[u] is not None:
@@ -304,7 +319,8 @@ def main(argv=None) -> int:
                                        output=args.output, draws=args.save_draws,
                                        optima_mixture=args.optima_mixture,
                                        gap_prior_from_crossings=args.gap_prior_from_crossings,
-                                       final_max_moves=args.final_moves, resume=not args.force,
+                                       final_max_moves=args.final_moves, max_moves=args.max_moves,
+                                       resume=not args.force,
                                        progress=args.progress), todo))  # each row saved as it is done
     return write_page(args.output, args.particles, args.optima_mixture, args.gap_prior_from_crossings)
 

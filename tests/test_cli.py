@@ -262,14 +262,15 @@ def test_torsionfits_warnings_are_one_line(capsys):
     assert capsys.readouterr().err == "torsionfit accept: warning: 'kd': the decision extrapolates the model (speed 0–30 rpm asked)\n"
 
 
-@pytest.mark.parametrize("flag, wanted", [(["--sampler", "smc"], ("smc", 1000, 100)),
-                                          (["--sampler", "smc", "--smc-particles", "300"], ("smc", 300, 100)),
-                                          (["--sampler", "smc", "--smc-final-moves", "300"], ("smc", 1000, 300))])
+@pytest.mark.parametrize("flag, wanted", [(["--sampler", "smc"], ("smc", 1000, 100, 100)),
+                                          (["--sampler", "smc", "--smc-particles", "300"], ("smc", 300, 100, 100)),
+                                          (["--sampler", "smc", "--smc-final-moves", "300"], ("smc", 1000, 100, 300)),
+                                          (["--sampler", "smc", "--smc-moves", "300"], ("smc", 1000, 300, 100))])
 def test_fit_passes_the_smc_sampler_and_its_particles(tmp_path, monkeypatch, flag, wanted):
     import torsionfit.report as report_module
 
     seen = _noise_seen(tmp_path, monkeypatch, report_module, "fit_campaign", "fit", flag,
-                       lambda o: (o.sampler, o.smc_particles, o.smc_final_max_moves), part=lambda o: o)
+                       lambda o: (o.sampler, o.smc_particles, o.smc_max_moves, o.smc_final_max_moves), part=lambda o: o)
     assert seen == wanted
 
 
@@ -277,3 +278,6 @@ def test_fit_refuses_a_last_smc_stage_shorter_than_the_others(capsys):
     with pytest.raises(SystemExit):
         main(["fit", "campaign.toml", "--sampler", "smc", "--smc-final-moves", "50"])
     assert "--smc-final-moves: expected at least 100 moves" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["fit", "campaign.toml", "--sampler", "smc", "--smc-moves", "0"])
+    assert "--smc-moves: expected at least 1 moves (a stage moves its particles at least once)" in capsys.readouterr().err

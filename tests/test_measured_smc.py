@@ -51,6 +51,7 @@ def test_a_loops_row_is_reused_only_with_the_same_particles_and_seed(tmp_path):
     assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 0, optima_mixture=True) is None
     assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 0, gap_prior_from_crossings=True) is None
     assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 0, final_max_moves=300) is None
+    assert ms._done_row(tmp_path, "split-pccf-initial-pos1", 500, 0, max_moves=300) is None
 
 
 def test_a_run_with_the_gap_prior_from_the_crossings_is_its_own_and_says_so(tmp_path):
@@ -107,6 +108,10 @@ def test_a_row_says_which_hmc_kernel_made_it():
     assert ms.kernel_text(row) == "21, drawn steps" and row["kernel"]["step_spread"] == 30.0
     row["final_max_moves"] = 300  # a longer last stage is the row's own and says so
     assert ms.kernel_text(row) == "21, drawn steps, 300 moves allowed at β = 1"
+    row["max_moves"] = 300  # so does a longer budget at every stage; the last gets at least as many
+    assert ms.kernel_text(row) == "21, drawn steps, 300 moves allowed at every stage"
+    row["final_max_moves"] = 500
+    assert ms.kernel_text(row) == "21, drawn steps, 300 moves allowed at every stage, 500 moves allowed at β = 1"
 
 
 def test_the_departure_lists_the_coordinates_the_particles_moved_most_first_in_the_split_normals_sd():
@@ -185,6 +190,7 @@ def test_each_loop_and_settings_keeps_its_own_smc_checkpoint_in_the_output_folde
     assert checkpoint.suffix == ".npz"
     # a run of other settings neither resumes nor overwrites it
     others = [dict(base, unit="split-pccf-preload3-pos5"), dict(base, particles=1000), dict(base, seed=1),
-              dict(base, optima_mixture=True), dict(base, gap_prior_from_crossings=True), dict(base, final_max_moves=100)]
+              dict(base, optima_mixture=True), dict(base, gap_prior_from_crossings=True), dict(base, final_max_moves=100),
+              dict(base, max_moves=300)]
     assert len({path, *(ms._chain_path(tmp_path, **o) for o in others)}) == 1 + len(others)
     assert smc_checkpoint_path(FitOptions()) is None  # no chain kept: no checkpoint

@@ -452,6 +452,25 @@ def test_the_gap_with_a_soft_first_segment_is_a_metric_of_three_segment_models(n
         assert out["geometric_gap"] == pytest.approx(values["gap"] / arcmin, rel=1e-9)
 
 
+@pytest.mark.parametrize("moves, final, wanted", [(100, 100, (100, 100)), (300, 100, (300, 300)),
+                                                  (100, 300, (100, 300)), (300, 500, (300, 500))])
+def test_smc_gets_the_moves_allowed_at_every_stage_and_at_the_last(monkeypatch, moves, final, wanted):
+    """``smc_max_moves`` is every stage's budget and the last stage gets at least as many."""
+    import torsionfit.sample
+    import torsionfit.sample._emcee as emcee_module
+    from torsionfit.report import _pipeline
+
+    seen = {}
+    monkeypatch.setattr(_pipeline, "laplace_approximation", lambda *a, **k: "approximation")
+    monkeypatch.setattr(emcee_module, "_LogProb", lambda problem, batch: "log_p")
+    monkeypatch.setattr(emcee_module, "_LogProbGrad", lambda problem, batch: "log_p_and_grad")
+    monkeypatch.setattr(torsionfit.sample, "tempered_smc", lambda *a, **k: seen.update(k))
+    map_result = dataclasses.make_dataclass("MapResult", ["u", "names"])(np.zeros(2), ("a", "b"))
+    options = FitOptions(sampler="smc", smc_max_moves=moves, smc_final_max_moves=final, progress=False)
+    _pipeline.run_smc(None, map_result, options, 0)
+    assert (seen["max_moves"], seen["final_max_moves"]) == wanted
+
+
 def test_smc_sampler_draws_the_posterior_and_reports_its_schedule(noisy_bench, tmp_path):
     """``sampler="smc"``: tempered SMC from the split normal; on the model's own bench the
     posterior is near Gaussian, so the particles agree with the Laplace draws' spread, and

@@ -143,6 +143,7 @@ def _cmd_fit(args) -> int:
         decimate=args.decimate,
         laplace_shape=args.laplace_shape,
         smc_particles=args.smc_particles,
+        smc_max_moves=args.smc_moves,
         smc_final_max_moves=args.smc_final_moves,
     )
     say = _say(args)  # progress once the input is known good: bad input is one line
@@ -314,16 +315,17 @@ def _add_quiet(p) -> None:
     p.add_argument("--no-progress", dest="quiet", action="store_true", help=argparse.SUPPRESS)  # the old spelling
 
 
-def _moves_at_least(least: int):
-    """An argparse type: an integer of moves no smaller than ``least`` (the stages' own budget)."""
+def _moves_at_least(least: int, why: str = "the stages before the last get {least}"):
+    """An argparse type: an integer of moves no smaller than ``least`` (by default the stages' own
+    budget; ``why`` says what sets it)."""
     def parse(text: str) -> int:
         try:
             value = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"expected an integer number of moves, got {text!r}") from None
         if value < least:
-            raise argparse.ArgumentTypeError(f"expected at least {least} moves (the stages before the last get "
-                                             f"{least}), got {value}")
+            raise argparse.ArgumentTypeError(f"expected at least {least} moves ({why.format(least=least)}), "
+                                             f"got {value}")
         return value
     return parse
 
@@ -364,6 +366,9 @@ def build_parser() -> argparse.ArgumentParser:
                       "laplace: the MAP's Gaussian approximation (fast screening). The choice and its reason go "
                       "to fit.json")
     p.add_argument("--smc-particles", type=int, default=1000, help="smc's particles (its draws; default 1000)")
+    p.add_argument("--smc-moves", type=_moves_at_least(1, "a stage moves its particles at least once"), default=100,
+                   help="smc's moves allowed at every stage (default 100): a stage whose particles have not forgotten "
+                        "their start by then reads not converged; the last stage gets at least as many")
     p.add_argument("--smc-final-moves", type=_moves_at_least(100), default=100,
                    help="smc's moves allowed at the last stage, on the posterior itself (default 100, as at every "
                         "stage before it; more only sample the posterior longer)")

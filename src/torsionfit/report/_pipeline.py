@@ -67,7 +67,8 @@ class FitOptions:
     resume: bool = False
     laplace_draws: int = 4000
     smc_particles: int = 1000  # tempered SMC's particles (= its draws)
-    smc_final_max_moves: int = 100  # SMC's moves allowed at β = 1 (100 at the stages before)
+    smc_max_moves: int = 100  # SMC's moves allowed at each stage (a stage that needs more is not converged)
+    smc_final_max_moves: int = 100  # SMC's moves allowed at β = 1 (at least smc_max_moves)
     laplace_shape: str = "gaussian"
     metric_draws: int = 2000  # draws used for the derived metrics
     lost_motion_pct: float = 3.0
@@ -435,7 +436,8 @@ def run_smc(problem, map_result, options: FitOptions, seed: int, other_optima=()
     names = tuple(getattr(map_result, "names", None) or (f"u[{i}]" for i in range(len(map_result.u))))
     return tempered_smc(log_density, approximation, np.random.default_rng(seed), options.smc_particles,
                         log_p_and_grad=_LogProbGrad(problem, batch=GRADIENT_BATCH), names=names, seed=seed,
-                        final_max_moves=options.smc_final_max_moves,
+                        max_moves=options.smc_max_moves,
+                        final_max_moves=max(options.smc_final_max_moves, options.smc_max_moves),
                         progress=log.info if options.progress else None,
                         checkpoint=smc_checkpoint_path(options), resume=options.resume)
 
