@@ -336,15 +336,12 @@ def check_te_ratio(output_angle_rad, input_angle_rad, ratio: float, where: str, 
         hint = (f"the input turns against the output (a reducer that reverses direction, or an input encoder counting "
                 f"the other way): give the run a te_<unit> column, or negate column {input_column!r}")
     else:
-        fits = []
-        for other, factor in units.ANGLE_UNITS.items():
-            f = factor / units.ANGLE_UNITS[input_unit]  # the input's true size over its size as read
-            if other != input_unit and abs(found * f / ratio - 1.0) <= TE_RATIO_TOLERANCE:
-                fits.append(f"column {input_column!r} holding {other}")
-        for other, factor in units.ANGLE_UNITS.items():
-            f = factor / units.ANGLE_UNITS[output_unit]
-            if other != output_unit and abs(found / f / ratio - 1.0) <= TE_RATIO_TOLERANCE:
-                fits.append(f"column {output_column!r} holding {other}")
+        # a column's true size over its size as read scales the ratio by f (input) or 1/f (output)
+        fits = [f"column {column!r} holding {other}"
+                for column, unit, power in ((input_column, input_unit, 1), (output_column, output_unit, -1))
+                for other, factor in units.ANGLE_UNITS.items()
+                if other != unit and abs(found * (factor / units.ANGLE_UNITS[unit]) ** power / ratio - 1.0)
+                <= TE_RATIO_TOLERANCE]
         hint = (f"{' or '.join(fits)} would turn them at the ratio: declare its unit (the column name's suffix, or "
                 f"[runs.units])" if fits else "check [reducer] ratio and the units of both columns")
     raise InputError(f"{where}: columns {input_column!r} ({input_unit}) and {output_column!r} ({output_unit}) turn "

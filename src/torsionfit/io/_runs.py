@@ -207,12 +207,11 @@ def _transmission_error(spec, reducer, si, time, found, where, notes) -> Transmi
             f"a transmission-error run must cover at least one output revolution (360°)"
         )
     check_te_direction(output, spec.direction, where, found["output_angle"].name)
+    key = "speed_rpm" if spec.speed_rpm is not None else "input_speed_rpm / [reducer] ratio"
     if time is not None:
-        key = "speed_rpm" if spec.speed_rpm is not None else "input_speed_rpm / [reducer] ratio"
         check_te_speed(time, output, speed, where, found["time"].name, found["time"].unit,
                        found["output_angle"].name, found["output_angle"].unit, key)
     if time is None and spec.sample_rate_Hz is not None:
-        key = "speed_rpm" if spec.speed_rpm is not None else "input_speed_rpm / [reducer] ratio"
         check_te_speed_at_rate(spec.sample_rate_Hz, output, speed, where, found["output_angle"].name,
                                found["output_angle"].unit, key)
         time = np.arange(len(output)) / spec.sample_rate_Hz
