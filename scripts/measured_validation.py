@@ -148,9 +148,11 @@ def not_validated(unit: str) -> str | None:
     # that stops there is named here, and the other units are validated
     with tempfile.TemporaryDirectory() as folder:
         try:
-            load_campaign(manifest(unit, None, Path(folder)))
+            run = load_campaign(manifest(unit, None, Path(folder))).runs[0]
+            # the play is read off the play ramps' loop: ramps that form none have no play to compare
+            cycle_classes(run.time_s, run.torque_Nm, run.angle_rad, name=unit).play_class(unit)
         except InputError as err:
-            return str(err)
+            return f"{path}: {err}" if str(path) not in str(err) else str(err)
     return None
 
 
@@ -415,7 +417,7 @@ def validate(unit: str, folder: Path, args) -> dict:
     for row in pred[: args.metric_draws or len(pred)]:
         try:
             classes = cycle_classes(t, tau, row, name=unit)  # once per draw, for both metrics
-            play = play_of(classes.smallest)
+            play = play_of(classes.play_class(unit))
             fit = loading_fit(classes.largest, play, name=unit)
             plays.append(play / DEG)
             comps.append([fit.compliance_pos / DEG, fit.compliance_neg / DEG])
@@ -444,7 +446,7 @@ def data_metrics(t, tau, y, unit: str) -> dict:
     """Data-only play and loading compliance of one file (deg, deg/N·m), and the loading
     compliance branch by branch: its cycle-to-cycle scatter."""
     classes = cycle_classes(t, tau, y, name=unit)
-    play = play_of(classes.smallest)
+    play = play_of(classes.play_class(unit))
     fit = loading_fit(classes.largest, play, name=unit)
     pos, neg = loading_compliance_cycles(classes.largest, play, name=unit)
     return {"play_data_deg": play / DEG, "compliance_data_deg_per_Nm": [fit.compliance_pos / DEG, fit.compliance_neg / DEG],

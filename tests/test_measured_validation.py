@@ -97,6 +97,13 @@ def test_measured_files_without_an_example_manifest_are_validated_too(tmp_path, 
         "\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n")
     reason = mv.not_validated("split-pla-preload1-pos1")
     assert "\n" not in reason and "preload1-pos1.csv: column 'POSITION' falls as column 'TORQUE' rises" in reason
+    # one play ramp (0 → + → − → 0) before the large ones: no loop to read the play from, named
+    # in one line (before, the large cycles' width was compared with the authors' play)
+    one_play = [lines[0]] + [ln for ln in lines[1:] if int(float(ln.split(",")[col])) in (0, 100, 101, 102)]
+    (tmp_path / "data" / "split-pla" / "preload2-pos1.csv").write_text("\n".join(one_play) + "\n")
+    reason = mv.not_validated("split-pla-preload2-pos1")
+    assert reason.startswith(f"{tmp_path / 'data' / 'split-pla' / 'preload2-pos1.csv'}: hysteresis run ")
+    assert "\n" not in reason and "run in one direction only" in reason
     assert mv.not_validated("split-pla-initial-pos1") is None
 
 

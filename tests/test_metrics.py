@@ -764,6 +764,46 @@ def test_a_run_of_one_amplitude_class_says_so():
     assert "backlash" in out["metrics"]  # the loop metrics at the run's nominal peak
 
 
+def _knots_record(knots, rate=2.0, fs=100.0):
+    pieces = [np.linspace(a, b, max(2, int(round(abs(b - a) / rate * fs))), endpoint=False)
+              for a, b in zip(knots[:-1], knots[1:])]
+    tau = np.clip(np.concatenate(pieces + [np.array([knots[-1]])]), -PLATEAU, PLATEAU)
+    return np.arange(tau.size) / fs, tau
+
+
+LARGE_CYCLES = [LARGE, -LARGE, LARGE, -LARGE, LARGE, -LARGE, 0.0]
+
+
+def test_a_single_play_ramp_forms_no_loop_and_gives_no_play():
+    # One play ramp 0 → +4 → −4 → 0 before the stiffness ramps: its one full branch (+4 → −4)
+    # has no increasing branch across zero to measure the width against. The play is a note
+    # naming that, not the stiffness ramps' width (their backlash); the loading slope stays.
+    time, tau = _knots_record([0.0, SMALL, -SMALL, 0.0] + LARGE_CYCLES)
+    theta = bench_angle(tau)
+    classes = cycle_classes(time, tau, theta)
+    assert [round(c.amplitude_Nm) for c in classes.classes] == [36]
+    assert classes.dropped_amplitudes_Nm == pytest.approx((SMALL,), rel=0.05)  # the smoothed peak
+    with pytest.raises(InputError, match=r"'one': its smallest ramps \(±3\.\d+ N·m\) run in one direction only"):
+        classes.play_class("one")
+    with pytest.raises(InputError, match="no loop at zero torque to read the play from"):
+        play_from_arrays(time, tau, theta)
+    run = HysteresisRun(name="one-play-ramp", time_s=time, torque_Nm=tau, angle_rad=theta)
+    (out,) = campaign_metrics(Campaign(Reducer("u"), Instrument(), (run,)))["runs"]
+    m = out["metrics"]
+    assert "play" not in m and "run in one direction only" in out["notes"]["play"]
+    assert "±36 N·m cycles' width is their backlash, not the play" in out["notes"]["play"]
+    assert (value(m, "compliance_loading_pos", "deg/Nm"), value(m, "compliance_loading_neg", "deg/Nm")) == \
+        pytest.approx((0.085, 0.095), rel=1e-3)
+    assert "the play ramps form no loop" in m["stiffness_loading"]["note"]
+    assert "one amplitude class only" not in m["stiffness_loading"]["note"]
+    # two such ramps in a row: −4 → 0 → +4 closes the loop, and the play is read
+    time, tau = _knots_record([0.0, SMALL, -SMALL, 0.0, SMALL, -SMALL, 0.0] + LARGE_CYCLES)
+    assert play_from_arrays(time, tau, bench_angle(tau)) == pytest.approx(EXPECTED_PLAY, rel=1e-3)
+    # play ramps larger than the only loop do not stop its play: they are not the smallest
+    time, tau = _knots_record([0.0, SMALL, -SMALL, SMALL, -SMALL, 0.0, LARGE, -LARGE, 0.0])
+    assert play_from_arrays(time, tau, bench_angle(tau)) == pytest.approx(EXPECTED_PLAY, rel=1e-3)
+
+
 def test_a_metric_that_cannot_be_computed_is_a_note_and_the_others_stay():
     time, tau = bench_protocol()
     good = HysteresisRun(name="good", time_s=time, torque_Nm=tau, angle_rad=bench_angle(tau))
@@ -883,6 +923,25 @@ def test_measured_play_ramps_alone_are_read_when_declared_partial_load(tmp_path)
     assert {"backlash", "stiffness_rated", "lost_motion"} <= set(m)
     assert value(m, "rated_torque") < 6.0  # the loop's own peak, not the reducer's 20 N·m
     assert "stiffness_loading" not in m and "play ramps" in run["notes"]["stiffness_loading"]
+
+
+@needs_jv
+def test_a_measured_file_with_one_play_ramp_gives_no_play_and_the_same_loading_slope(tmp_path):
+    """REAL baseline initial-pos1 read with one play ramp (test_nr 0) before the stiffness
+    ramps: the ramp forms no loop, so no play (a note naming it; before, the stiffness ramps'
+    width was given as the play, about 20 % above the file's); the loading compliances are the
+    whole file's within 2 %."""
+    from torsionfit.io import load_campaign
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "cycloidal-jv" / "baseline-pccf-initial-pos1.toml"
+    text = example.read_text().replace('file = "../../../shared/data', f'file = "{JV.parent.as_posix()}')
+    one = tmp_path / "one-play-ramp.toml"
+    one.write_text(text.split("\n[runs.select]")[0].rstrip() + "\n\n[runs.select]\ntest_nr = [0, 100, 101, 102]\n")
+    (run,) = campaign_metrics(load_campaign(one))["runs"]
+    (whole,) = campaign_metrics(load_campaign(example))["runs"]
+    assert "play" not in run["metrics"] and "run in one direction only" in run["notes"]["play"]
+    for name in ("compliance_loading_pos", "compliance_loading_neg"):
+        assert value(run["metrics"], name) == pytest.approx(value(whole["metrics"], name), rel=0.02)
 
 
 @needs_jv

@@ -18,16 +18,21 @@ T_F = 0.6  # N·m, friction of the play operator
 GAP, EPS_GAP = 0.5 * DEG, 0.05  # rad, N·m
 
 
-def _record(compliance_deg_per_Nm: float, fs: float = 50.0, rate: float = 4.0):
-    knots = [0.0, 4.0] + [-4.0, 4.0] * 5 + [0.0, 40.0, -40.0, 40.0, -40.0, 40.0, -40.0, 0.0]
+def _loop(knots, compliance_deg_per_Nm: float = 0.09, fs: float = 50.0, rate: float = 4.0, friction: float = T_F):
+    """Time (s), torque (N·m) ramped through ``knots`` at ``rate`` N·m/s, and the angle (rad)."""
     tau = np.concatenate([np.linspace(a, b, max(2, int(abs(b - a) / rate * fs)), endpoint=False)
                           for a, b in zip(knots[:-1], knots[1:])] + [np.zeros(1)])
     mesh, state = np.empty_like(tau), 0.0
     for i, t in enumerate(tau):
-        state = min(max(state, t - T_F), t + T_F)
+        state = min(max(state, t - friction), t + friction)
         mesh[i] = state
     theta = compliance_deg_per_Nm * DEG * mesh + 0.5 * GAP * np.tanh(mesh / EPS_GAP)
     return np.arange(tau.size) / fs, tau, theta
+
+
+def _record(compliance_deg_per_Nm: float, fs: float = 50.0, rate: float = 4.0):
+    knots = [0.0, 4.0] + [-4.0, 4.0] * 5 + [0.0, 40.0, -40.0, 40.0, -40.0, 40.0, -40.0, 0.0]
+    return _loop(knots, compliance_deg_per_Nm, fs, rate)
 
 
 def _campaign(*compliances) -> Campaign:
@@ -138,6 +143,30 @@ def test_on_a_measured_loop_the_reader_and_the_readings_are_the_data_only_metric
         assert r["run"] == "preload2-pos1" and 0 < r["se"] < 0.05 * r["value"], (name, r)
 
 
+def test_a_play_ramp_that_forms_no_loop_leaves_the_play_out_of_the_fit_with_its_reason():
+    """SYNTHETIC: one ±4 N·m play ramp (0 → + → − → 0) before three ±40 N·m cycles. The ramp
+    has no increasing branch across zero: no play from the data or the model (before, both
+    read the large cycles' width as the play), named in the fit's metrics_not_computed; the
+    loading slope is reported and checked against the data's."""
+    from torsionfit.report import FitOptions, fit_campaign, fit_json
+    from torsionfit.report._record import record_classes
+
+    t, tau, theta = _loop([0.0, 4.0, -4.0, 0.0, 40.0, -40.0, 40.0, -40.0, 40.0, -40.0, 0.0], fs=25.0)
+    theta += np.random.default_rng(1).normal(0.0, 2e-5, theta.size)
+    campaign = Campaign(Reducer("u", rated_torque_Nm=40.0), Instrument(), (
+        HysteresisRun(name="one-play-ramp", time_s=t, torque_Nm=tau, angle_rad=theta),))
+    assert "run in one direction only" in record_classes(campaign).play_note
+    readings = data_readings(campaign)
+    assert "play" not in readings and readings["compliance_loading_pos"]["value"] == pytest.approx(0.09, rel=0.02)
+    with pytest.warns(UserWarning, match="metrics not computed: play: hysteresis run 'one-play-ramp'"):
+        fit = fit_campaign(campaign, FitOptions(sampler="laplace", progress=False, laplace_draws=100, metric_draws=20), seed=0)
+    doc = fit_json(fit)
+    assert set(doc["diagnostics"]["metrics_not_computed"]) == {"play"}
+    assert "play" not in doc["metrics"] and "no play:" in doc["metrics"]["stiffness_loading"]["description"]
+    assert doc["metrics"]["compliance_loading_pos"]["mean"] == pytest.approx(0.09, rel=0.05)
+    assert doc["metrics"]["stiffness_loading"]["data"]["within"] is not None
+
+
 def test_a_metric_read_on_no_draw_is_left_out_with_its_reason_and_the_others_are_reported():
     """SYNTHETIC: only ±4 N·m cycles whose friction (2.5 N·m) holds the twist past half their
     peak: the loading slope has no range beyond the play, for the data and for the model alike.
@@ -145,18 +174,10 @@ def test_a_metric_read_on_no_draw_is_left_out_with_its_reason_and_the_others_are
     (it once dropped every draw and stopped on an empty interval)."""
     from torsionfit.report import FitOptions, fit_campaign, fit_json, summary_table
 
-    knots = [0.0, 4.0] + [-4.0, 4.0] * 4 + [0.0]
-    fs, friction = 50.0, 2.5
-    tau = np.concatenate([np.linspace(a, b, int(abs(b - a) * fs / 4.0), endpoint=False)
-                          for a, b in zip(knots[:-1], knots[1:])] + [np.zeros(1)])
-    mesh, state = np.empty_like(tau), 0.0
-    for i, t in enumerate(tau):
-        state = min(max(state, t - friction), t + friction)
-        mesh[i] = state
-    theta = 0.09 * DEG * mesh + 0.5 * GAP * np.tanh(mesh / EPS_GAP)
+    t, tau, theta = _loop([0.0, 4.0] + [-4.0, 4.0] * 4 + [0.0], friction=2.5)
     theta += np.random.default_rng(0).normal(0.0, 2e-6, theta.size)
     campaign = Campaign(Reducer("u", rated_torque_Nm=4.0), Instrument(), (
-        HysteresisRun(name="small", time_s=np.arange(tau.size) / fs, torque_Nm=tau, angle_rad=theta),))
+        HysteresisRun(name="small", time_s=t, torque_Nm=tau, angle_rad=theta),))
     with pytest.warns(UserWarning, match="metrics not computed: stiffness_loading"):
         fit = fit_campaign(campaign, FitOptions(sampler="laplace", progress=False, laplace_draws=200, metric_draws=40), seed=0)
     doc = fit_json(fit)

@@ -403,17 +403,35 @@ class CycleClasses:
 
     ``segments`` are all monotone segments of the smoothed torque, ``(start, stop, direction)``
     as in :class:`LoopBranches`; ``dropped`` says why amplitude groups were not kept (one
-    direction only).
+    direction only), ``dropped_amplitudes_Nm`` are those groups' amplitudes (N·m).
     """
 
     smoothed_torque_Nm: np.ndarray
     segments: tuple[tuple[int, int, int], ...]
     classes: tuple[AmplitudeClass, ...]
     dropped: tuple[str, ...] = ()
+    dropped_amplitudes_Nm: tuple[float, ...] = ()
 
     @property
     def smallest(self) -> AmplitudeClass:
+        """The smallest class that forms a loop (both directions)."""
         return self.classes[0]
+
+    def play_class(self, name: str = "run") -> AmplitudeClass:
+        """The class ``play`` is read from: the smallest cycles. Raises :class:`InputError`
+        when ramps smaller than the smallest loop ran in one direction only — e.g. a single play
+        ramp 0 → + → − → 0, whose one decreasing branch has no increasing branch to measure the
+        width against: the play ramps form no loop, and the next cycles' width is not their
+        play (friction at the larger load widens it)."""
+        smaller = [a for a in self.dropped_amplitudes_Nm if a < self.smallest.amplitude_Nm]
+        if smaller:
+            raise InputError(
+                f"hysteresis run {name!r}: its smallest ramps (±{min(smaller):.3g} N·m) run in one direction "
+                f"only, no loop at zero torque to read the play from (a play ramp 0 → + → − → 0 alone has one "
+                f"full branch); expected at least two such ramps in a row. The ±{self.smallest.amplitude_Nm:.3g} "
+                f"N·m cycles' width is their backlash, not the play"
+            )
+        return self.smallest
 
     @property
     def largest(self) -> AmplitudeClass:
@@ -482,7 +500,7 @@ def cycle_classes(
         else:
             groups.append([k])
 
-    classes, dropped = [], []
+    classes, dropped, dropped_amplitudes = [], [], []
     for ids in groups:
         ids = sorted(ids)
         amp = float(np.median([amplitude[k] for k in ids]))
@@ -492,6 +510,7 @@ def cycle_classes(
             dropped.append(
                 f"{len(ids)} ramp(s) of amplitude {amp:.3g} N·m all in one direction (no loop)"
             )
+            dropped_amplitudes.append(amp)
             continue
         grid = np.linspace(*_shared_range(smooth, segments, ids), n_grid)
 
@@ -513,7 +532,7 @@ def cycle_classes(
             f"ramps of one amplitude crossing zero torque); expected ramps between a negative "
             f"and a positive peak"
         )
-    return CycleClasses(smooth, tuple(segments), tuple(classes), tuple(dropped))
+    return CycleClasses(smooth, tuple(segments), tuple(classes), tuple(dropped), tuple(dropped_amplitudes))
 
 
 def class_loading_rate(classes: CycleClasses, cls: AmplitudeClass, time_s) -> float | None:
@@ -716,7 +735,7 @@ def play_from_arrays(time_s, torque_Nm, angle_rad, *, name: str = "run") -> floa
     and the start of the rising negative slope of the small-ramp loop"). It includes whatever
     friction holds the loop open at zero torque: the data cannot separate gap from friction.
     """
-    return play_of(cycle_classes(time_s, torque_Nm, angle_rad, name=name).smallest)
+    return play_of(cycle_classes(time_s, torque_Nm, angle_rad, name=name).play_class(name))
 
 
 def loading_compliance_from_arrays(
@@ -729,8 +748,9 @@ def loading_compliance_from_arrays(
     of angle against torque of the *loading* branches — increasing torque for τ > 0,
     decreasing torque for τ < 0 — fitted by least squares from where the branch has crossed
     the play (its angle from the loop midpoint at zero torque is past half the play) to the
-    peak, separately for + and − (:func:`loading_fit`). ``play_rad`` defaults to
-    :func:`play_from_arrays` of the same record. The loading stiffness is
+    peak, separately for + and − (:func:`loading_fit`). ``play_rad`` defaults to the loop
+    width at zero torque of the record's smallest full cycles (:func:`play_from_arrays`, or
+    where the play ramps form no loop the next cycles' width). The loading stiffness is
     ``1 / mean(positive, negative)``: the authors average compliances, not stiffnesses.
     """
     classes = cycle_classes(time_s, torque_Nm, angle_rad, name=name)
@@ -1080,6 +1100,11 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
     small, large = classes.smallest, classes.largest
     single = len(classes.classes) == 1
     deg = lambda a: from_si(a, "angle", "deg")  # noqa: E731
+    try:
+        classes.play_class(run.name)
+        no_play = None
+    except InputError as err:  # the play ramps form no loop: no play, the loading slope still
+        no_play = str(err)
     play = play_of(small)
     if play < 0:
         # friction and gap open a loop the other way: a negative width is a reversed sign
@@ -1102,7 +1127,10 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
             "than small play ramps, this is their loop width at zero torque (backlash), which "
             "friction at the larger load widens"
         )
-    out["play"] = _entry(from_si(play, "angle", "arcmin"), "arcmin", play_note)
+    if no_play is None:
+        out["play"] = _entry(from_si(play, "angle", "arcmin"), "arcmin", play_note)
+    else:
+        notes["play"] = no_play
 
     small_only = (
         single
@@ -1126,13 +1154,16 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
         f"of the largest cycles, ±{large.amplitude_Nm:.3g} N·m ({large.n_lower} increasing and "
         f"{large.n_upper} decreasing ramps averaged)"
     )
-    if single:
+    if single and no_play is None:
         where += "; the run has one amplitude class only, no separate play ramps"
     span = (
         f"least squares of angle on torque from where the branch is past half the play "
         f"(±{deg(play) / 2:.3g}° from the loop midpoint at zero torque) to {100 * LOADING_FIT_TOP:g} % "
         f"of the peak"
     )
+    if no_play is not None:
+        span += (f"; the play ramps form no loop: half the ±{small.amplitude_Nm:.3g} N·m cycles' width "
+                 f"stands for half the play")
     out["stiffness_loading"] = _entry(
         from_si(fit.stiffness, "stiffness", "Nm/arcmin"),
         "Nm/arcmin",

@@ -53,6 +53,8 @@ def data_readings(campaign) -> dict[str, dict]:
     except InputError:  # no loading slope to read: the data-only metrics' notes say why
         readings = {"play": Reading(play_of(classes.small), cycle_se(play_cycles(classes.small)))}
     readings["stiffness_loading"] = readings.pop("compliance_loading", None)
+    if classes.play_note is not None:  # the play ramps form no loop: the width read is not the play
+        readings.pop("play", None)
     out = {}
     for name, unit in UNITS.items():
         if readings.get(name) is not None:

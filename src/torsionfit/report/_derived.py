@@ -136,6 +136,8 @@ class DerivedMetrics(eqx.Module):
     lost_motion_fraction: jnp.ndarray  # x of the lost motion at ±x·T_r
     #: directions (+1, −1) with a no-load TE run in the campaign: K_d there is against the no-load TE
     te_reference_directions: tuple = eqx.field(static=True, default=())
+    #: why ``play`` is not among the record's metrics (the play ramps form no loop); None: it is
+    play_note: str | None = eqx.field(static=True, default=None)
 
     def evaluate(self, values: dict) -> jnp.ndarray:
         """All metrics (in ``specs`` order, their units) for one parameter set (SI)."""
@@ -180,7 +182,8 @@ class DerivedMetrics(eqx.Module):
             play, c_pos, c_neg = self.record.read(
                 self.hyst_model, [record_params(self.hyst_model, params, values, k) for k in self.record.run_index])
             deg = ANGLE_UNITS["deg"]
-            out += [play / ARCMIN, 2.0 / (c_pos + c_neg) / NM_PER_ARCMIN, c_pos / deg, c_neg / deg]
+            out += [play / ARCMIN] if self.play_note is None else []
+            out += [2.0 / (c_pos + c_neg) / NM_PER_ARCMIN, c_pos / deg, c_neg / deg]
         if self.te_model is not None:
             in_window, weight = _TE_GRID[1], _TE_GRID[2]
             for loaded, reference in self.te_inputs:
@@ -309,8 +312,11 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
                  f"sample), read as the data "
                  f"are: the ±{classes.small.amplitude_Nm:.3g} N·m cycles for the play, the ±{classes.large.amplitude_Nm:.3g} N·m "
                  f"cycles for the loading slope")
+        if classes.play_note is not None:  # the play ramps form no loop: the width of the smallest full cycles
+            where += " (their width stands for the play the loading slope starts past; no play: " + classes.play_note + ")"
         specs += [
-            MetricSpec("play", "arcmin", f"loop width at zero torque of the smallest cycles: {where}"),
+            *([MetricSpec("play", "arcmin", f"loop width at zero torque of the smallest cycles: {where}")]
+              if classes.play_note is None else []),
             MetricSpec("stiffness_loading", "Nm/arcmin", "1 / mean of the + and − loading-branch compliances of the largest cycles, beyond half the play from the loop centre up to the peak (the data authors' definition), "
                        + where),
             MetricSpec("compliance_loading_pos", "deg/Nm", "loading compliance of the + side (increasing torque, τ > 0), as stiffness_loading"),
@@ -342,4 +348,5 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
     steps = SAMPLES_PER_STEP if model.creep is None else SAMPLES_PER_STEP_CREEP
     protocol = _protocol(rated, rate, steps, lost_motion_pct / 100.0)
     return DerivedMetrics(hyst_model, te_model, protocol, te_inputs, record, tuple(specs), jnp.asarray(float(rated)),
-                          jnp.asarray(lost_motion_pct / 100.0), ref_directions)
+                          jnp.asarray(lost_motion_pct / 100.0), ref_directions,
+                          play_note=None if classes is None else classes.play_note)

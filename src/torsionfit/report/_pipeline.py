@@ -801,12 +801,14 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     read_share = np.mean(np.isfinite(all_metric_draws), axis=0)
     readable = read_share >= 0.5
     specs = tuple(s for s, ok in zip(derived.specs, readable) if ok)
+    unread = {} if derived.play_note is None else {"play": derived.play_note}
     if not readable.all():
-        unread = unreadable_notes({s.name: share for s, ok, share in zip(derived.specs, readable, read_share) if not ok},
-                                  campaign, len(all_metric_draws))
+        unread |= unreadable_notes({s.name: share for s, ok, share in zip(derived.specs, readable, read_share) if not ok},
+                                   campaign, len(all_metric_draws))
+        all_metric_draws = all_metric_draws[:, readable]
+    if unread:
         diagnostics["metrics_not_computed"] = unread
         warnings.warn("metrics not computed: " + "; ".join(f"{k}: {v}" for k, v in unread.items()))
-        all_metric_draws = all_metric_draws[:, readable]
     bad = ~np.all(np.isfinite(all_metric_draws), axis=1)
     if bad.any():
         warnings.warn(f"{bad.sum()} of {len(bad)} draws gave non-finite metrics and were dropped")

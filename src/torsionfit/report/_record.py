@@ -31,7 +31,9 @@ from ..metrics._hysteresis import (LOADING_FIT_MAX_START, LOADING_FIT_TOP, Ampli
 class RecordClasses:
     """The hysteresis runs (and their cycle classes) the class metrics are read from: the run
     with the smallest cycles for ``play``, the run with the largest for the loading slope
-    (often one run: play ramps, then stiffness ramps)."""
+    (often one run: play ramps, then stiffness ramps). ``play_note`` says why no ``play`` is
+    read (the smallest ramps form no loop: ``CycleClasses.play_class``); ``small`` is then the
+    smallest full cycles, whose width stands for the play the loading slope starts past."""
 
     small_run: object
     small: AmplitudeClass
@@ -39,6 +41,7 @@ class RecordClasses:
     large_run: object
     large: AmplitudeClass
     large_classes: CycleClasses
+    play_note: str | None = None
 
 
 def record_classes(campaign: Campaign) -> RecordClasses | None:
@@ -54,7 +57,13 @@ def record_classes(campaign: Campaign) -> RecordClasses | None:
         return None
     small_run, small_classes = min(grouped, key=lambda g: g[1].smallest.amplitude_Nm)
     large_run, large_classes = max(grouped, key=lambda g: g[1].largest.amplitude_Nm)
-    return RecordClasses(small_run, small_classes.smallest, small_classes, large_run, large_classes.largest, large_classes)
+    try:
+        small_classes.play_class(small_run.name)
+        play_note = None
+    except InputError as err:
+        play_note = str(err)
+    return RecordClasses(small_run, small_classes.smallest, small_classes, large_run, large_classes.largest, large_classes,
+                         play_note)
 
 
 class _Mean(eqx.Module):
