@@ -149,8 +149,9 @@ def not_validated(unit: str) -> str | None:
     with tempfile.TemporaryDirectory() as folder:
         try:
             run = load_campaign(manifest(unit, None, Path(folder))).runs[0]
-            # the play is read off the play ramps' loop: ramps that form none have no play to compare
-            cycle_classes(run.time_s, run.torque_Nm, run.angle_rad, name=unit).play_class(unit)
+            # the play and the loading slope are read off loops: ramps that form none give neither to compare
+            classes = cycle_classes(run.time_s, run.torque_Nm, run.angle_rad, name=unit)
+            classes.play_class(unit), classes.loading_class(unit)
         except InputError as err:
             return f"{path}: {err}" if str(path) not in str(err) else str(err)
     return None
@@ -418,7 +419,7 @@ def validate(unit: str, folder: Path, args) -> dict:
         try:
             classes = cycle_classes(t, tau, row, name=unit)  # once per draw, for both metrics
             play = play_of(classes.play_class(unit))
-            fit = loading_fit(classes.largest, play, name=unit)
+            fit = loading_fit(classes.loading_class(unit), play, name=unit)
             plays.append(play / DEG)
             comps.append([fit.compliance_pos / DEG, fit.compliance_neg / DEG])
         except Exception as err:  # noqa: BLE001 - a draw whose loop the definition cannot read
@@ -447,8 +448,8 @@ def data_metrics(t, tau, y, unit: str) -> dict:
     compliance branch by branch: its cycle-to-cycle scatter."""
     classes = cycle_classes(t, tau, y, name=unit)
     play = play_of(classes.play_class(unit))
-    fit = loading_fit(classes.largest, play, name=unit)
-    pos, neg = loading_compliance_cycles(classes.largest, play, name=unit)
+    fit = loading_fit(classes.loading_class(unit), play, name=unit)
+    pos, neg = loading_compliance_cycles(classes.loading_class(unit), play, name=unit)
     return {"play_data_deg": play / DEG, "compliance_data_deg_per_Nm": [fit.compliance_pos / DEG, fit.compliance_neg / DEG],
             "compliance_data_cycles_deg_per_Nm": {"pos": (pos / DEG).tolist(), "neg": (neg / DEG).tolist()}}
 

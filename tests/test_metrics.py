@@ -804,6 +804,30 @@ def test_a_single_play_ramp_forms_no_loop_and_gives_no_play():
     assert play_from_arrays(time, tau, bench_angle(tau)) == pytest.approx(EXPECTED_PLAY, rel=1e-3)
 
 
+def test_a_single_stiffness_ramp_forms_no_loop_and_gives_no_loading_slope():
+    # Play cycles, then one stiffness ramp 0 → +40 → −40 → 0 (or ±20 cycles, then one ±40
+    # ramp): the largest ramps form no loop. The loading slope is a note naming them, not the
+    # smaller cycles' slope (before, the play ramps' slope was given as the stiffness ramps');
+    # the play stays, without the one-class caveat.
+    for knots, largest in (([0.0, SMALL, -SMALL, SMALL, -SMALL, 0.0, LARGE, -LARGE, 0.0], "±3"),
+                           ([0.0, SMALL, -SMALL, SMALL, -SMALL, 0.0, 20.0, -20.0, 20.0, -20.0, 0.0, LARGE, -LARGE, 0.0],
+                            "±19")):
+        time, tau = _knots_record(knots)
+        theta = bench_angle(tau)
+        with pytest.raises(InputError, match=r"'r': its largest ramps \(±3\d\.?\d* N·m\) run in one direction only"):
+            cycle_classes(time, tau, theta).loading_class("r")
+        with pytest.raises(InputError, match="no loop to read the loading slope from"):
+            loading_compliance_from_arrays(time, tau, theta)
+        run = HysteresisRun(name="one-stiffness-ramp", time_s=time, torque_Nm=tau, angle_rad=theta)
+        (out,) = campaign_metrics(Campaign(Reducer("u"), Instrument(), (run,)))["runs"]
+        m = out["metrics"]
+        assert value(m, "play") == pytest.approx(EXPECTED_PLAY / ARCMIN, rel=1e-3)
+        assert "one amplitude class only" not in m["play"]["note"]
+        for name in ("stiffness_loading", "compliance_loading_pos", "compliance_loading_neg"):
+            assert name not in m and f"N·m cycles are not the stiffness ramps" in out["notes"][name]
+            assert f"The {largest}" in out["notes"][name]
+
+
 def test_a_metric_that_cannot_be_computed_is_a_note_and_the_others_stay():
     time, tau = bench_protocol()
     good = HysteresisRun(name="good", time_s=time, torque_Nm=tau, angle_rad=bench_angle(tau))

@@ -143,28 +143,65 @@ def test_on_a_measured_loop_the_reader_and_the_readings_are_the_data_only_metric
         assert r["run"] == "preload2-pos1" and 0 < r["se"] < 0.05 * r["value"], (name, r)
 
 
-def test_a_play_ramp_that_forms_no_loop_leaves_the_play_out_of_the_fit_with_its_reason():
-    """SYNTHETIC: one ±4 N·m play ramp (0 → + → − → 0) before three ±40 N·m cycles. The ramp
-    has no increasing branch across zero: no play from the data or the model (before, both
-    read the large cycles' width as the play), named in the fit's metrics_not_computed; the
-    loading slope is reported and checked against the data's."""
+LOADING = ("stiffness_loading", "compliance_loading_pos", "compliance_loading_neg")
+
+
+@pytest.mark.parametrize("knots, left_out", [
+    ([0.0, 4.0, -4.0, 0.0, 40.0, -40.0, 40.0, -40.0, 40.0, -40.0, 0.0], ("play",)),
+    ([0.0, 4.0, -4.0, 4.0, -4.0, 4.0, -4.0, 0.0, 40.0, -40.0, 0.0], LOADING),
+], ids=["one-play-ramp", "one-stiffness-ramp"])
+def test_ramps_that_form_no_loop_leave_their_metrics_out_of_the_fit_with_the_reason(knots, left_out):
+    """SYNTHETIC: one ±4 N·m play ramp (0 → + → − → 0) before three ±40 N·m cycles, or play
+    cycles before one ±40 N·m ramp. The single ramp has no increasing branch across zero: no
+    play (no loading slope) from the data or the model — before, both read the other cycles'
+    width (slope) as the play (the stiffness ramps') — named in the fit's metrics_not_computed;
+    the other class metrics are reported and checked against the data's."""
     from torsionfit.report import FitOptions, fit_campaign, fit_json
     from torsionfit.report._record import record_classes
 
-    t, tau, theta = _loop([0.0, 4.0, -4.0, 0.0, 40.0, -40.0, 40.0, -40.0, 40.0, -40.0, 0.0], fs=25.0)
+    t, tau, theta = _loop(knots, fs=25.0)
     theta += np.random.default_rng(1).normal(0.0, 2e-5, theta.size)
     campaign = Campaign(Reducer("u", rated_torque_Nm=40.0), Instrument(), (
-        HysteresisRun(name="one-play-ramp", time_s=t, torque_Nm=tau, angle_rad=theta),))
-    assert "run in one direction only" in record_classes(campaign).play_note
+        HysteresisRun(name="r", time_s=t, torque_Nm=tau, angle_rad=theta),))
+    classes = record_classes(campaign)
+    assert "run in one direction only" in (classes.play_note if left_out == ("play",) else classes.loading_note)
     readings = data_readings(campaign)
-    assert "play" not in readings and readings["compliance_loading_pos"]["value"] == pytest.approx(0.09, rel=0.02)
-    with pytest.warns(UserWarning, match="metrics not computed: play: hysteresis run 'one-play-ramp'"):
+    assert not set(left_out) & set(readings) and len(readings) == 4 - len(left_out)
+    with pytest.warns(UserWarning, match=f"metrics not computed: {left_out[0]}: hysteresis run 'r'"):
         fit = fit_campaign(campaign, FitOptions(sampler="laplace", progress=False, laplace_draws=100, metric_draws=20), seed=0)
     doc = fit_json(fit)
-    assert set(doc["diagnostics"]["metrics_not_computed"]) == {"play"}
-    assert "play" not in doc["metrics"] and "no play:" in doc["metrics"]["stiffness_loading"]["description"]
-    assert doc["metrics"]["compliance_loading_pos"]["mean"] == pytest.approx(0.09, rel=0.05)
-    assert doc["metrics"]["stiffness_loading"]["data"]["within"] is not None
+    assert set(doc["diagnostics"]["metrics_not_computed"]) == set(left_out)
+    assert not set(left_out) & set(doc["metrics"])
+    for name in readings:  # what the data read, the model reports and is checked against
+        assert doc["metrics"][name]["data"]["within"] is not None
+    if left_out == ("play",):
+        assert "no play:" in doc["metrics"]["stiffness_loading"]["description"]
+        assert doc["metrics"]["compliance_loading_pos"]["mean"] == pytest.approx(0.09, rel=0.05)
+
+
+def test_ramps_that_form_no_loop_give_no_record_readings_of_what_they_would_hold():
+    """SYNTHETIC: one stiffness ramp after the play cycles gives the play alone; one play ramp
+    and one stiffness ramp around ±20 N·m cycles give neither (no record), and the model's
+    metrics leave them out with the reason (the specs and values the fit reports agree)."""
+    from torsionfit.report._derived import derived_metrics_for
+    from torsionfit.report._pipeline import campaign_model
+    from torsionfit.report._record import record_classes
+
+    def campaign(knots):
+        t, tau, theta = _loop(knots)
+        return Campaign(Reducer("u", rated_torque_Nm=40.0), Instrument(), (
+            HysteresisRun(name="r", time_s=t, torque_Nm=tau, angle_rad=theta),))
+
+    one_large = campaign([0.0, 4.0, -4.0, 4.0, -4.0, 0.0, 40.0, -40.0, 0.0])
+    classes = record_classes(one_large)
+    assert classes.play_note is None and "its largest ramps" in classes.loading_note
+    assert set(data_readings(one_large)) == {"play"}
+    derived = derived_metrics_for(one_large, campaign_model(one_large))
+    names = [s.name for s in derived.specs]
+    assert "play" in names and "stiffness_loading" not in names
+    assert set(derived.not_read_notes()) == {"stiffness_loading", "compliance_loading_pos", "compliance_loading_neg"}
+    neither = campaign([0.0, 4.0, -4.0, 0.0, 20.0, -20.0, 20.0, -20.0, 0.0, 40.0, -40.0, 0.0])
+    assert record_classes(neither) is None and data_readings(neither) == {}
 
 
 def test_a_metric_read_on_no_draw_is_left_out_with_its_reason_and_the_others_are_reported():

@@ -433,6 +433,21 @@ class CycleClasses:
             )
         return self.smallest
 
+    def loading_class(self, name: str = "run") -> AmplitudeClass:
+        """The class the loading slope is read from: the largest cycles. Raises
+        :class:`InputError` when ramps larger than the largest loop ran in one direction only
+        (a single stiffness ramp 0 → + → − → 0): the smaller cycles' slope is not the
+        stiffness ramps' (on a real reducer the gap and friction weigh more there)."""
+        larger = [a for a in self.dropped_amplitudes_Nm if a > self.largest.amplitude_Nm]
+        if larger:
+            raise InputError(
+                f"hysteresis run {name!r}: its largest ramps (±{max(larger):.3g} N·m) run in one direction "
+                f"only, no loop to read the loading slope from (a ramp 0 → + → − → 0 alone has one full "
+                f"branch); expected at least two such ramps in a row. The ±{self.largest.amplitude_Nm:.3g} "
+                f"N·m cycles are not the stiffness ramps"
+            )
+        return self.largest
+
     @property
     def largest(self) -> AmplitudeClass:
         return self.classes[-1]
@@ -755,7 +770,7 @@ def loading_compliance_from_arrays(
     """
     classes = cycle_classes(time_s, torque_Nm, angle_rad, name=name)
     play = play_of(classes.smallest) if play_rad is None else float(play_rad)
-    fit = loading_fit(classes.largest, play, name=name)
+    fit = loading_fit(classes.loading_class(name), play, name=name)
     return fit.compliance_pos, fit.compliance_neg
 
 
@@ -1098,7 +1113,8 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
     except InputError as err:
         return out, {name: str(err) for name in CLASS_METRICS}
     small, large = classes.smallest, classes.largest
-    single = len(classes.classes) == 1
+    # one class, and no ramps of another amplitude that formed no loop
+    single = len(classes.classes) == 1 and not classes.dropped_amplitudes_Nm
     deg = lambda a: from_si(a, "angle", "deg")  # noqa: E731
     try:
         classes.play_class(run.name)
@@ -1137,6 +1153,11 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
         and rated_torque_Nm is not None
         and large.amplitude_Nm < STIFFNESS_RAMP_FRACTION * float(rated_torque_Nm)
     )
+    try:
+        classes.loading_class(run.name)
+    except InputError as err:  # the stiffness ramps form no loop: the smaller cycles' slope is not theirs
+        notes.update({name: str(err) for name in CLASS_METRICS[1:]})
+        return out, notes
     if small_only:
         why = (
             f"the run's only cycles reach ±{large.amplitude_Nm:.3g} N·m, under "

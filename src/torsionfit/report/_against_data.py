@@ -49,6 +49,8 @@ def data_readings(campaign) -> dict[str, dict]:
     if classes is None:
         return {}
     try:
+        if classes.loading_note is not None:  # the stiffness ramps form no loop: the play alone
+            raise InputError(classes.loading_note)
         readings = class_readings(classes.small, classes.large, name=classes.large_run.name)
     except InputError:  # no loading slope to read: the data-only metrics' notes say why
         readings = {"play": Reading(play_of(classes.small), cycle_se(play_cycles(classes.small)))}

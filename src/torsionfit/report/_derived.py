@@ -138,6 +138,16 @@ class DerivedMetrics(eqx.Module):
     te_reference_directions: tuple = eqx.field(static=True, default=())
     #: why ``play`` is not among the record's metrics (the play ramps form no loop); None: it is
     play_note: str | None = eqx.field(static=True, default=None)
+    #: why the loading slope is not (the stiffness ramps form no loop); None: it is
+    loading_note: str | None = eqx.field(static=True, default=None)
+
+    def not_read_notes(self) -> dict[str, str]:
+        """``{metric: why}`` of the class metrics the data's record gives no reading of."""
+        out = {} if self.play_note is None else {"play": self.play_note}
+        if self.loading_note is not None:
+            out |= {name: self.loading_note for name in ("stiffness_loading", "compliance_loading_pos",
+                                                         "compliance_loading_neg")}
+        return out
 
     def evaluate(self, values: dict) -> jnp.ndarray:
         """All metrics (in ``specs`` order, their units) for one parameter set (SI)."""
@@ -183,7 +193,8 @@ class DerivedMetrics(eqx.Module):
                 self.hyst_model, [record_params(self.hyst_model, params, values, k) for k in self.record.run_index])
             deg = ANGLE_UNITS["deg"]
             out += [play / ARCMIN] if self.play_note is None else []
-            out += [2.0 / (c_pos + c_neg) / NM_PER_ARCMIN, c_pos / deg, c_neg / deg]
+            if self.loading_note is None:
+                out += [2.0 / (c_pos + c_neg) / NM_PER_ARCMIN, c_pos / deg, c_neg / deg]
         if self.te_model is not None:
             in_window, weight = _TE_GRID[1], _TE_GRID[2]
             for loaded, reference in self.te_inputs:
@@ -314,14 +325,15 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
                  f"cycles for the loading slope")
         if classes.play_note is not None:  # the play ramps form no loop: the width of the smallest full cycles
             where += " (their width stands for the play the loading slope starts past; no play: " + classes.play_note + ")"
-        specs += [
-            *([MetricSpec("play", "arcmin", f"loop width at zero torque of the smallest cycles: {where}")]
-              if classes.play_note is None else []),
-            MetricSpec("stiffness_loading", "Nm/arcmin", "1 / mean of the + and − loading-branch compliances of the largest cycles, beyond half the play from the loop centre up to the peak (the data authors' definition), "
-                       + where),
-            MetricSpec("compliance_loading_pos", "deg/Nm", "loading compliance of the + side (increasing torque, τ > 0), as stiffness_loading"),
-            MetricSpec("compliance_loading_neg", "deg/Nm", "loading compliance of the − side (decreasing torque, τ < 0), as stiffness_loading"),
-        ]
+        if classes.play_note is None:
+            specs.append(MetricSpec("play", "arcmin", f"loop width at zero torque of the smallest cycles: {where}"))
+        if classes.loading_note is None:
+            specs += [
+                MetricSpec("stiffness_loading", "Nm/arcmin", "1 / mean of the + and − loading-branch compliances of the largest cycles, beyond half the play from the loop centre up to the peak (the data authors' definition), "
+                           + where),
+                MetricSpec("compliance_loading_pos", "deg/Nm", "loading compliance of the + side (increasing torque, τ > 0), as stiffness_loading"),
+                MetricSpec("compliance_loading_neg", "deg/Nm", "loading compliance of the − side (decreasing torque, τ < 0), as stiffness_loading"),
+            ]
     te_model, te_inputs, ref_directions = None, [], ()
     if campaign.te_runs:
         te_model = dataclasses.replace(model, run_kinds=("transmission_error",))
@@ -349,4 +361,5 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
     protocol = _protocol(rated, rate, steps, lost_motion_pct / 100.0)
     return DerivedMetrics(hyst_model, te_model, protocol, te_inputs, record, tuple(specs), jnp.asarray(float(rated)),
                           jnp.asarray(lost_motion_pct / 100.0), ref_directions,
-                          play_note=None if classes is None else classes.play_note)
+                          play_note=None if classes is None else classes.play_note,
+                          loading_note=None if classes is None else classes.loading_note)

@@ -801,7 +801,7 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
     read_share = np.mean(np.isfinite(all_metric_draws), axis=0)
     readable = read_share >= 0.5
     specs = tuple(s for s, ok in zip(derived.specs, readable) if ok)
-    unread = {} if derived.play_note is None else {"play": derived.play_note}
+    unread = derived.not_read_notes()
     if not readable.all():
         unread |= unreadable_notes({s.name: share for s, ok, share in zip(derived.specs, readable, read_share) if not ok},
                                    campaign, len(all_metric_draws))

@@ -33,7 +33,9 @@ class RecordClasses:
     with the smallest cycles for ``play``, the run with the largest for the loading slope
     (often one run: play ramps, then stiffness ramps). ``play_note`` says why no ``play`` is
     read (the smallest ramps form no loop: ``CycleClasses.play_class``); ``small`` is then the
-    smallest full cycles, whose width stands for the play the loading slope starts past."""
+    smallest full cycles, whose width stands for the play the loading slope starts past.
+    ``loading_note`` says why no loading slope is read (the largest ramps form no loop:
+    ``CycleClasses.loading_class``)."""
 
     small_run: object
     small: AmplitudeClass
@@ -42,6 +44,7 @@ class RecordClasses:
     large: AmplitudeClass
     large_classes: CycleClasses
     play_note: str | None = None
+    loading_note: str | None = None
 
 
 def record_classes(campaign: Campaign) -> RecordClasses | None:
@@ -57,13 +60,17 @@ def record_classes(campaign: Campaign) -> RecordClasses | None:
         return None
     small_run, small_classes = min(grouped, key=lambda g: g[1].smallest.amplitude_Nm)
     large_run, large_classes = max(grouped, key=lambda g: g[1].largest.amplitude_Nm)
-    try:
-        small_classes.play_class(small_run.name)
-        play_note = None
-    except InputError as err:
-        play_note = str(err)
+    notes = []
+    for read in (lambda: small_classes.play_class(small_run.name), lambda: large_classes.loading_class(large_run.name)):
+        try:
+            read()
+            notes.append(None)
+        except InputError as err:
+            notes.append(str(err))
+    if all(notes):
+        return None  # neither the play nor the loading slope: no record to read
     return RecordClasses(small_run, small_classes.smallest, small_classes, large_run, large_classes.largest, large_classes,
-                         play_note)
+                         *notes)
 
 
 class _Mean(eqx.Module):
