@@ -828,6 +828,33 @@ def test_a_single_stiffness_ramp_forms_no_loop_and_gives_no_loading_slope():
             assert f"The {largest}" in out["notes"][name]
 
 
+def test_cycles_about_another_torque_than_zero_are_named_not_read_as_play():
+    # A torque zero offset of 1.5 N·m: the ±4 N·m play cycles run from −2.5 to +5.5 N·m, too
+    # lopsided to be cycle branches. Before, they were left out silently and the stiffness ramps'
+    # width given as the play; now the play is a note naming the cycles' centre. An offset of
+    # 0.5 N·m keeps them cycles, and the play's note says how far off zero they centre.
+    time, tau = bench_protocol()
+    shifted = tau + 1.5
+    classes = cycle_classes(time, shifted, bench_angle(tau))
+    ((lo, hi),) = classes.off_centre_ramps_Nm
+    assert (lo, hi) == pytest.approx((-2.5, 5.5), abs=0.15)
+    with pytest.raises(InputError, match=r"ramps from -2\.\d+ to \+5\.\d+ N·m cycle about \+1\.5 N·m.*zero offset"):
+        play_from_arrays(time, shifted, bench_angle(tau))
+    (out,) = campaign_metrics(Campaign(Reducer("u"), Instrument(), (
+        HysteresisRun(name="offset", time_s=time, torque_Nm=shifted, angle_rad=bench_angle(tau)),)))["runs"]
+    assert "play" not in out["metrics"] and "cycle about +1.5 N·m" in out["notes"]["play"]
+    assert "stiffness_loading" in out["metrics"]
+    # play ramps alone, off centre: no full cycle, and the message says why
+    time_p, tau_p = bench_protocol(n_large=0)
+    with pytest.raises(InputError, match=r"no full cycle found .*; its ramps from .* cycle about \+1\.5 N·m"):
+        cycle_classes(time_p, tau_p + 1.5, bench_angle(tau_p))
+    (out,) = campaign_metrics(Campaign(Reducer("u"), Instrument(), (
+        HysteresisRun(name="offset", time_s=time, torque_Nm=tau + 0.5, angle_rad=bench_angle(tau)),)))["runs"]
+    assert "these cycles centre at +0.5 N·m, 15 % of their amplitude off zero torque" in out["metrics"]["play"]["note"]
+    # the transitions between amplitudes (−4 → +40, −40 → 0) are lopsided once: not cycles about another torque
+    assert cycle_classes(time, tau, bench_angle(tau)).off_centre_ramps_Nm == ()
+
+
 def test_a_metric_that_cannot_be_computed_is_a_note_and_the_others_stay():
     time, tau = bench_protocol()
     good = HysteresisRun(name="good", time_s=time, torque_Nm=tau, angle_rad=bench_angle(tau))
@@ -969,6 +996,36 @@ def test_a_measured_file_with_one_play_ramp_gives_no_play_and_the_same_loading_s
 
 
 @needs_jv
+def test_a_measured_torque_zero_offset_moves_the_play_and_is_named(tmp_path):
+    """REAL split preload1-pos1 with its torque shifted: by 0.5 N·m the play read at zero torque
+    moves by more than 10 % and its note names the cycles' centre; by 1.5 N·m the play ramps no
+    longer cross zero as cycles, and the play is a note naming the offset, not the stiffness
+    ramps' width."""
+    import pandas as pd
+
+    data = pd.read_csv(JV / "split-pccf" / "preload1-pos1.csv.gz")
+    manifest = (
+        '[reducer]\nname = "u"\n[instrument]\nencoder_resolution_arcsec = 19.775390625\n'
+        '[[runs]]\nname = "r"\nkind = "hysteresis"\nfile = "{file}"\n'
+        '[runs.columns]\ntime = "TIME"\ntorque = "TORQUE"\nangle = "POSITION"\n[runs.units]\nangle = "rev"\n'
+    )
+    from torsionfit.io import load_campaign
+
+    plays = {}
+    for offset in (0.0, 0.5, 1.5):
+        csv = tmp_path / f"offset-{offset}.csv"
+        data.assign(TORQUE=data["TORQUE"] + offset).to_csv(csv, index=False)
+        toml = tmp_path / f"offset-{offset}.toml"
+        toml.write_text(manifest.format(file=csv.as_posix()))
+        (run,) = campaign_metrics(load_campaign(toml))["runs"]
+        plays[offset] = run
+    assert "centre at" not in plays[0.0]["metrics"]["play"]["note"]
+    moved = value(plays[0.5]["metrics"], "play") / value(plays[0.0]["metrics"], "play") - 1
+    assert abs(moved) > 0.10 and "these cycles centre at +0.5" in plays[0.5]["metrics"]["play"]["note"]
+    assert "play" not in plays[1.5]["metrics"] and "zero offset" in plays[1.5]["notes"]["play"]
+
+
+@needs_jv
 def test_a_measured_file_that_stops_at_reading_is_a_note_of_the_table(tmp_path, monkeypatch):
     """A file the reader stops (here REAL split initial-pos1 with POSITION negated, a temporary
     copy): its metrics are the reader's one line in the table's notes, the other files measured."""
@@ -1024,6 +1081,9 @@ def test_measured_play_and_loading_stiffness_match_the_data_authors(key):
     assert abs(row["d_play"]) <= 0.10, row["d_play"]
     assert abs(row["d_stiffness"]) <= 0.10, row["d_stiffness"]
     assert row["ours"]["notes"] == {}
+    # their play ramps centre on zero torque (within 2 % of their amplitude): no offset note
+    for run in row["ours"]["runs"].values():
+        assert "centre at" not in run["metrics"]["play"]["note"]
 
 
 def test_play_ramps_of_five_percent_of_the_peak_are_a_class_of_their_own():

@@ -364,7 +364,9 @@ class AmplitudeClass:
     torque; ``upper_rad`` the mean of its decreasing-torque branches, ``lower_rad`` the mean of
     its increasing-torque branches, on ``torque_Nm`` (the torque range all its branches share);
     ``upper_each_rad`` / ``lower_each_rad`` the branches one by one (rows in time order).
-    ``segment_ids`` index :attr:`CycleClasses.segments`.
+    ``segment_ids`` index :attr:`CycleClasses.segments`; ``centre_Nm`` is the torque midway
+    between the median peak and the median trough of its branches (a ramp commanded about zero
+    centres near zero; a torque zero offset moves it).
     """
 
     amplitude_Nm: float
@@ -372,6 +374,7 @@ class AmplitudeClass:
     upper_each_rad: np.ndarray
     lower_each_rad: np.ndarray
     segment_ids: tuple[int, ...]
+    centre_Nm: float = 0.0
 
     @property
     def upper_rad(self) -> np.ndarray:
@@ -411,6 +414,10 @@ class CycleClasses:
     classes: tuple[AmplitudeClass, ...]
     dropped: tuple[str, ...] = ()
     dropped_amplitudes_Nm: tuple[float, ...] = ()
+    #: (trough, peak) in N·m of ramps that cross zero torque too far off centre to be cycle
+    #: branches but repeat, up and down, between one trough and one peak: cycles about a
+    #: torque other than zero (a torque zero offset), not a transition between amplitudes
+    off_centre_ramps_Nm: tuple[tuple[float, float], ...] = ()
 
     @property
     def smallest(self) -> AmplitudeClass:
@@ -423,6 +430,13 @@ class CycleClasses:
         ramp 0 → + → − → 0, whose one decreasing branch has no increasing branch to measure the
         width against: the play ramps form no loop, and the next cycles' width is not their
         play (friction at the larger load widens it)."""
+        off = [(lo, hi) for lo, hi in self.off_centre_ramps_Nm if max(-lo, hi) < self.smallest.amplitude_Nm]
+        if off:
+            lo, hi = min(off, key=lambda r: r[1] - r[0])
+            raise InputError(
+                f"hysteresis run {name!r}: {_off_centre_text(lo, hi)}; the play is read at zero torque. The "
+                f"±{self.smallest.amplitude_Nm:.3g} N·m cycles' width is their backlash, not the play"
+            )
         smaller = [a for a in self.dropped_amplitudes_Nm if a < self.smallest.amplitude_Nm]
         if smaller:
             raise InputError(
@@ -503,11 +517,14 @@ def cycle_classes(
         smooth, _split_monotone(smooth, noise), threshold, CYCLE_RELATIVE_RETREAT
     )
 
-    amplitude = {}
-    for k, (start, stop, _) in enumerate(segments):
+    amplitude, extent, lopsided = {}, {}, []
+    for k, (start, stop, direction) in enumerate(segments):
         lo, hi = float(smooth[start : stop + 1].min()), float(smooth[start : stop + 1].max())
+        extent[k] = (lo, hi)
         if lo < 0 < hi and min(-lo, hi) >= CYCLE_SYMMETRY * max(-lo, hi):
             amplitude[k] = min(-lo, hi)
+        elif lo < 0 < hi:
+            lopsided.append((lo, hi, direction))
     groups: list[list[int]] = []
     for k in sorted(amplitude, key=amplitude.get):
         if groups and amplitude[k] <= AMPLITUDE_CLASS_RATIO * amplitude[groups[-1][-1]]:
@@ -539,15 +556,45 @@ def cycle_classes(
                 upper_each_rad=curves(upper_ids),
                 lower_each_rad=curves(lower_ids),
                 segment_ids=tuple(ids),
+                centre_Nm=0.5 * float(np.median([extent[k][0] for k in ids]) + np.median([extent[k][1] for k in ids])),
             )
         )
+    off_centre = _repeated_lopsided(lopsided)
     if not classes:
+        why = f"; {_off_centre_text(*off_centre[0])}" if off_centre else ""
         raise InputError(
             f"hysteresis run {name!r}: no full cycle found (no increasing and decreasing torque "
-            f"ramps of one amplitude crossing zero torque); expected ramps between a negative "
+            f"ramps of one amplitude crossing zero torque){why}; expected ramps between a negative "
             f"and a positive peak"
         )
-    return CycleClasses(smooth, tuple(segments), tuple(classes), tuple(dropped), tuple(dropped_amplitudes))
+    return CycleClasses(smooth, tuple(segments), tuple(classes), tuple(dropped), tuple(dropped_amplitudes), off_centre)
+
+
+#: ramps off centre, up and down, are one repeated cycle when their troughs and peaks agree
+#: within this fraction of the ramp's torque span
+_OFF_CENTRE_MATCH = 0.2
+
+
+def _repeated_lopsided(lopsided: list[tuple[float, float, int]]) -> tuple[tuple[float, float], ...]:
+    """(trough, peak) of each set of zero-crossing ramps too lopsided to be cycle branches that
+    holds an increasing and a decreasing ramp between one trough and one peak (within
+    :data:`_OFF_CENTRE_MATCH` of the span): cycles about another torque than zero. A transition
+    from one amplitude to another (−4 → +25 N·m) runs once and has no such partner."""
+    out = []
+    for lo, hi, direction in lopsided:
+        if direction < 0:
+            continue
+        tol = _OFF_CENTRE_MATCH * (hi - lo)
+        if any(d < 0 and abs(l2 - lo) <= tol and abs(h2 - hi) <= tol for l2, h2, d in lopsided):
+            if not any(abs(l2 - lo) <= tol and abs(h2 - hi) <= tol for l2, h2 in out):
+                out.append((lo, hi))
+    return tuple(out)
+
+
+def _off_centre_text(lo: float, hi: float) -> str:
+    centre = 0.5 * (lo + hi)
+    return (f"its ramps from {lo:.3g} to {hi:+.3g} N·m cycle about {centre:+.3g} N·m, too far off zero torque to be "
+            f"read as cycles about it — is the torque's zero offset (a load cell's zero, or a motor-current estimate's)?")
 
 
 def class_loading_rate(classes: CycleClasses, cls: AmplitudeClass, time_s) -> float | None:
@@ -1098,6 +1145,10 @@ LOOP_METRICS = (
 )
 #: the metrics of the amplitude classes (:func:`play_from_arrays`, :func:`loading_fit`)
 CLASS_METRICS = ("play", "stiffness_loading", "compliance_loading_pos", "compliance_loading_neg")
+#: a play whose cycles centre further than this fraction of their amplitude off zero torque
+#: carries a note: the width at zero torque moves with the torque's zero (the measured
+#: cycloidal play ramps centre within 2 % of their amplitude)
+PLAY_CENTRE_NOTE_FRACTION = 0.1
 #: a run whose only amplitude class stays below this fraction of the rated torque holds play
 #: ramps, no stiffness ramps: its loading slope is not reported
 STIFFNESS_RAMP_FRACTION = 0.5
@@ -1137,6 +1188,11 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
         f"{small.n_upper} decreasing ramps averaged; amplitude classes in the run: {amplitudes} "
         f"N·m); the data authors' play, {deg(play):.4g}°"
     )
+    if abs(small.centre_Nm) > PLAY_CENTRE_NOTE_FRACTION * small.amplitude_Nm:
+        play_note += (
+            f"; these cycles centre at {small.centre_Nm:+.3g} N·m, {100 * abs(small.centre_Nm) / small.amplitude_Nm:.0f} % "
+            f"of their amplitude off zero torque: a torque zero offset moves the play read at zero torque"
+        )
     if single:
         play_note += (
             "; the run has one amplitude class only: if these are large stiffness ramps rather "
