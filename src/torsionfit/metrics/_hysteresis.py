@@ -135,10 +135,35 @@ def _shared_range(smooth: np.ndarray, segments, ids) -> tuple[float, float]:
     return lo, hi
 
 
-def _branch_curves(smooth: np.ndarray, theta: np.ndarray, segments, ids, grid: np.ndarray) -> np.ndarray:
-    """Angle of each segment in ``ids`` binned on the torque ``grid``: one row per segment."""
+#: a dip of the smoothed torque below the torque its branch has reached counts when deeper than
+#: this many σ of the noise left in it (shallower wiggles keep their own torque: holding them at
+#: the running maximum would bias a noisy branch towards higher torques)
+DIP_SIGMAS = 3.0
+
+
+def reached_torque(smooth_segment: np.ndarray, direction: int, noise_Nm: float = 0.0) -> np.ndarray:
+    """The torque a branch is read against at each of its samples (N·m): the torque it has
+    reached — the running maximum of the smoothed torque on an increasing-torque branch, the
+    running minimum on a decreasing one — where the torque has dipped back from it by more
+    than :data:`DIP_SIGMAS` × ``noise_Nm`` (the noise left in the smoothed torque), else the
+    torque itself.
+
+    A torque estimated from motor current dips while the rotor crosses the gap (the current
+    drops as it accelerates). Binned by the torque of the moment, the crossing's samples land
+    back at lower torques — on REAL baseline initial-pos5 read at every 10th or 20th sample,
+    inside the play ramps' zero-torque bin, which moved the play by 8–10 %. Where the torque
+    rises monotonically (any synthetic ramp), it is the torque itself."""
+    reached = np.maximum.accumulate(smooth_segment) if direction > 0 else np.minimum.accumulate(smooth_segment)
+    return np.where(np.abs(reached - smooth_segment) > DIP_SIGMAS * noise_Nm, reached, smooth_segment)
+
+
+def _branch_curves(smooth: np.ndarray, theta: np.ndarray, segments, ids, grid: np.ndarray,
+                   noise_Nm: float = 0.0) -> np.ndarray:
+    """Angle of each segment in ``ids`` binned on the torque ``grid`` against the torque it
+    has reached (:func:`reached_torque`): one row per segment."""
     spacing = float(grid[1] - grid[0])
-    return np.array([_binned_curve(smooth[s : e + 1], theta[s : e + 1], grid, spacing) for s, e, _ in (segments[k] for k in ids)])
+    return np.array([_binned_curve(reached_torque(smooth[s : e + 1], d, noise_Nm), theta[s : e + 1], grid, spacing)
+                     for s, e, d in (segments[k] for k in ids)])
 
 
 @dataclass(frozen=True)
@@ -163,15 +188,15 @@ class BranchWeights:
         return (1.0 - self.w) * mean[self.lo] + self.w * mean[self.lo + 1]
 
 
-def branch_weights(smooth: np.ndarray, segments, ids, grid: np.ndarray) -> BranchWeights:
+def branch_weights(smooth: np.ndarray, segments, ids, grid: np.ndarray, noise_Nm: float = 0.0) -> BranchWeights:
     """:class:`BranchWeights` of the segments ``ids`` of the smoothed torque ``smooth`` on
-    ``grid`` (bins and interpolation as :func:`_binned_curve`: bin means of torque and angle,
-    interpolated linearly between them, the end slopes continued past the ends)."""
+    ``grid`` (bins and interpolation as :func:`_binned_curve`: bin means of the reached torque
+    and the angle, interpolated linearly between them, the end slopes continued past the ends)."""
     spacing = float(grid[1] - grid[0])
     samples, bins, counts, lo, w = [], [], [], [], []
     offset = 0
-    for start, stop, _ in (segments[k] for k in ids):
-        tau = smooth[start : stop + 1]
+    for start, stop, direction in (segments[k] for k in ids):
+        tau = reached_torque(smooth[start : stop + 1], direction, noise_Nm)
         index = np.floor((tau - (grid[0] - 0.5 * spacing)) / spacing).astype(np.int64)
         index -= index.min()
         count = np.bincount(index)
@@ -287,7 +312,7 @@ def loop_branches(
     grid = np.linspace(g_lo, g_hi, n_grid)
 
     def curves(ids: list[int]) -> np.ndarray:
-        return _branch_curves(smooth, theta, segments, ids, grid)
+        return _branch_curves(smooth, theta, segments, ids, grid, sigma_smooth)
 
     upper_all, lower_all = curves(upper_ids), curves(lower_ids)
     return LoopBranches(
@@ -414,6 +439,9 @@ class CycleClasses:
     classes: tuple[AmplitudeClass, ...]
     dropped: tuple[str, ...] = ()
     dropped_amplitudes_Nm: tuple[float, ...] = ()
+    #: σ of the noise left in the smoothed torque (N·m): the branches are read against the
+    #: torque they have reached where it dips by more than :data:`DIP_SIGMAS` of it
+    torque_noise_Nm: float = 0.0
     #: (trough, peak) in N·m of ramps that cross zero torque too far off centre to be cycle
     #: branches but repeat, up and down, between one trough and one peak: cycles about a
     #: torque other than zero (a torque zero offset), not a transition between amplitudes
@@ -547,7 +575,7 @@ def cycle_classes(
         grid = np.linspace(*_shared_range(smooth, segments, ids), n_grid)
 
         def curves(sel: list[int]) -> np.ndarray:
-            return _branch_curves(smooth, theta, segments, sel, grid)
+            return _branch_curves(smooth, theta, segments, sel, grid, sigma)
 
         classes.append(
             AmplitudeClass(
@@ -567,7 +595,8 @@ def cycle_classes(
             f"ramps of one amplitude crossing zero torque){why}; expected ramps between a negative "
             f"and a positive peak"
         )
-    return CycleClasses(smooth, tuple(segments), tuple(classes), tuple(dropped), tuple(dropped_amplitudes), off_centre)
+    return CycleClasses(smooth, tuple(segments), tuple(classes), tuple(dropped), tuple(dropped_amplitudes), sigma,
+                        off_centre)
 
 
 #: ramps off centre, up and down, are one repeated cycle when their troughs and peaks agree

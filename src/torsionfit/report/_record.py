@@ -96,7 +96,7 @@ _PAD_SAMPLES, _PAD_BINS = 512, 64
 
 def _mean(classes: CycleClasses, cls: AmplitudeClass, direction: int) -> _Mean:
     ids = [k for k in cls.segment_ids if classes.segments[k][2] == direction]
-    bw = branch_weights(classes.smoothed_torque_Nm, classes.segments, ids, cls.torque_Nm)
+    bw = branch_weights(classes.smoothed_torque_Nm, classes.segments, ids, cls.torque_Nm, classes.torque_noise_Nm)
     n_bins = bw.counts.size
     bins_padded = -(-(n_bins + 1) // _PAD_BINS) * _PAD_BINS  # at least one spare bin
     pad = -bw.samples.size % _PAD_SAMPLES
