@@ -178,11 +178,14 @@ def generated_manifest_text(unit: str, path: Path) -> str:
     README's format as scripts/measured_metrics.py reads it (TIME s, TORQUE N·m from motor
     current, POSITION output revolutions, encoder steps of 2^-16 rev — the reader checks the
     declared step against the column's own), with the examples' assumed rating of 20 N·m, which
-    the fit's priors read."""
+    the fit's priors read, and the run's peak read off its cycles (``peak_torque_Nm = "data"``:
+    a unit of a weaker material whose stiffness ramps saturate below the assumed rating is read,
+    not stopped for not reaching it)."""
     from measured_metrics import CREDIT, MANIFEST
 
     design, stem = unit.rsplit("-", 2)[0], _stem(path)
     text = MANIFEST.format(folder=design, stem=stem, credit=CREDIT, file=json.dumps(path.as_posix()))
+    text = text.replace('kind = "hysteresis"\n', 'kind = "hysteresis"\npeak_torque_Nm = "data"\n', 1)
     return text.replace("[reducer]\n", "[reducer]\nrated_torque_Nm = 20.0  # assumed, as in the example manifests\n", 1)
 
 

@@ -74,6 +74,13 @@ def test_measured_files_without_an_example_manifest_are_validated_too(tmp_path, 
     with pytest.raises(SystemExit, match="split-pla-initial-pos9: no example manifest"):
         mv.manifest("split-pla-initial-pos9", None, tmp_path)
     assert mv.not_validated("split-pla-initial-pos1") is None
+    # a unit whose stiffness ramps saturate below the assumed 20 N·m rating (a weaker material:
+    # here the torque scaled to ±11.6 N·m) is read and validated, not stopped for its reach
+    import pandas as pd
+
+    weak = pd.read_csv(source)
+    weak.assign(TORQUE=weak["TORQUE"] * 0.45).to_csv(tmp_path / "data" / "split-pla" / "weak-pos1.csv", index=False)
+    assert mv.not_validated("split-pla-weak-pos1") is None
     # a file with one large ramp, and one without the ramp index: each stops in one line naming it
     import gzip
 
