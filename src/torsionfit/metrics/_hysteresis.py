@@ -457,7 +457,9 @@ class CycleClasses:
         when ramps smaller than the smallest loop ran in one direction only — e.g. a single play
         ramp 0 → + → − → 0, whose one decreasing branch has no increasing branch to measure the
         width against: the play ramps form no loop, and the next cycles' width is not their
-        play (friction at the larger load widens it)."""
+        play (friction at the larger load widens it); or when smaller ramps cycle about a torque
+        too far off zero to cross it as cycles (:attr:`off_centre_ramps_Nm`: a torque zero
+        offset), the play being read at zero torque."""
         off = [(lo, hi) for lo, hi in self.off_centre_ramps_Nm if max(-lo, hi) < self.smallest.amplitude_Nm]
         if off:
             lo, hi = min(off, key=lambda r: r[1] - r[0])
