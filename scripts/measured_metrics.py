@@ -62,15 +62,17 @@ angle = "rev"
 
 def authors_numbers(readme: Path = DATA / "README.md") -> dict[tuple[str, str], dict]:
     """The authors' table of the data README: ``{(folder, state): {"play_deg", "compliance",
-    "compliance_pos", "compliance_neg"}}`` (compliances in deg/N·m), in table order."""
+    "compliance_pos", "compliance_neg"}}`` (compliances in deg/N·m), in table order; a row that
+    gives the mean compliance without its ``(+ / −)`` sides has None for them."""
     row = re.compile(
-        r"^\|[^|]+\|\s*([\w-]+)\s*/\s*([\w-]+)\s*\|\s*([\d.]+)\s*\|\s*([\d.]+)\s*\(([\d.]+)\s*/\s*([\d.]+)\)\s*\|"
+        r"^\|[^|]+\|\s*([\w-]+)\s*/\s*([\w-]+)\s*\|\s*([\d.]+)\s*\|\s*([\d.]+)\s*(?:\(([\d.]+)\s*/\s*([\d.]+)\)\s*)?\|"
     )
     out = {}
     for line in readme.read_text(encoding="utf-8").splitlines():
         m = row.match(line.strip())
         if m:
-            play, mean, pos, neg = map(float, m.groups()[2:])
+            play, mean = float(m[3]), float(m[4])
+            pos, neg = (None, None) if m[5] is None else (float(m[5]), float(m[6]))
             out[(m[1], m[2])] = {"play_deg": play, "compliance": mean, "compliance_pos": pos, "compliance_neg": neg}
     return out
 
@@ -146,7 +148,7 @@ def measure(configurations) -> dict[tuple[str, str], dict]:
 
 
 def _rel(ours, theirs):
-    return None if ours is None else ours / theirs - 1.0
+    return None if ours is None or theirs is None else ours / theirs - 1.0
 
 
 def _pct(x):
@@ -209,7 +211,7 @@ def markdown(rows: list[dict]) -> str:
         lines.append(
             f"| {r['configuration']} | {_num(o['play_deg'], '.3f')} | {a['play_deg']:.3f} | {_pct(r['d_play'])} | "
             f"{_num(o['compliance'], '.4f')} ({_num(o['compliance_pos'], '.4f')} / {_num(o['compliance_neg'], '.4f')}) | "
-            f"{a['compliance']:.3f} ({a['compliance_pos']:.3f} / {a['compliance_neg']:.3f}) | "
+            f"{a['compliance']:.3f} ({_num(a['compliance_pos'], '.3f')} / {_num(a['compliance_neg'], '.3f')}) | "
             f"{_pct(r['d_compliance'])} ({_pct(r['d_pos'])} / {_pct(r['d_neg'])}) | "
             f"{_num(o['stiffness_loading'], '.4f')} | {1 / (60 * a['compliance']):.4f} | {_pct(r['d_stiffness'])} | {ok} |"
         )
@@ -268,7 +270,7 @@ def fit_end_deltas(rows: list[dict], top: float) -> np.ndarray | None:
     for r in rows:
         runs = r["ours"]["runs"].values()
         sides = [run.get("compliance_by_fit_end", {}).get(top) for run in runs]
-        if any(s is None for s in sides):
+        if any(s is None for s in sides) or r["authors"]["compliance_pos"] is None:
             return None
         for k, name in ((0, "compliance_pos"), (1, "compliance_neg")):
             out.append(abs(np.mean([s[k] for s in sides]) / r["authors"][name] - 1.0))

@@ -657,13 +657,15 @@ def _repeat(row: dict) -> str:
 
 
 def authors_table() -> dict:
-    """(play deg, compliance +, compliance −) per 'design/state' from the data README."""
-    text = (DATA / "README.md").read_text()
+    """(play deg, compliance +, compliance −) per '<design>-<state>' from the data README (the
+    table scripts/measured_metrics.py reads); a row without the + and − sides gives its mean
+    compliance for both."""
+    from measured_metrics import authors_numbers
+
     out = {}
-    for line in text.splitlines():
-        m = re.match(r"\|[^|]+\|\s*([\w-]+)\s*/\s*(\w+)\s*\|\s*([\d.]+)\s*\|\s*([\d.]+)\s*\(([\d.]+)\s*/\s*([\d.]+)\)", line)
-        if m:
-            out[f"{m.group(1)}-{m.group(2)}"] = (float(m.group(3)), float(m.group(5)), float(m.group(6)))
+    for (design, state), a in authors_numbers(DATA / "README.md").items():
+        pos, neg = a["compliance_pos"], a["compliance_neg"]
+        out[f"{design}-{state}"] = (a["play_deg"], *((a["compliance"],) * 2 if pos is None else (pos, neg)))
     return out
 
 

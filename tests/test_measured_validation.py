@@ -32,6 +32,27 @@ def test_authors_numbers_are_read_for_every_configuration():
     assert table["split-pccf-preload3"] == (0.121, 0.086, 0.095)
 
 
+def test_authors_rows_without_their_sides_or_with_a_hyphenated_state_are_read(tmp_path, monkeypatch):
+    """A README of another configuration set: a row giving the mean compliance alone, a state
+    named with a hyphen. Both are read (before, such rows were skipped and the configuration
+    named as having no authors' numbers); the mean stands for both sides."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import measured_metrics
+
+    readme = tmp_path / "README.md"
+    readme.write_text("| configuration | folder / state | play [deg] | compliance [deg/N·m] (+ / −) |\n"
+                      "| --- | --- | ---: | --- |\n"
+                      "| Baseline PLA | baseline-pla / run-in | 3.10 | 0.120 |\n"
+                      "| Split PLA | split-pla / initial | 1.20 | 0.110 (0.100 / 0.120) |\n")
+    monkeypatch.setattr(mv, "DATA", tmp_path)
+    assert mv.authors_table() == {"baseline-pla-run-in": (3.10, 0.120, 0.120), "split-pla-initial": (1.20, 0.100, 0.120)}
+    numbers = measured_metrics.authors_numbers(readme)
+    assert numbers[("baseline-pla", "run-in")]["compliance_pos"] is None
+    assert numbers[("split-pla", "initial")]["compliance"] == 0.110
+
+
 def test_units_are_named_one_by_one_or_by_design():
     split = mv.select_units(["split-pccf"])
     assert len(split) == 15 and all(u.startswith("split-pccf-") for u in split)
