@@ -1043,6 +1043,20 @@ def test_a_measured_file_read_at_a_lower_rate_gives_the_same_play(monkeypatch):
 
 
 @needs_jv
+def test_a_play_of_a_few_encoder_steps_says_so():
+    """REAL split preload3-pos1 (play 0.16°, 29 steps of its 19.8″ encoder) re-quantised to
+    2^-13 rev (158″): its play, 3.6 of those steps, reads 11 % low (3.2 steps); the play's note
+    says how many steps it spans. At the file's own steps, no note."""
+    data = np.genfromtxt(JV / "split-pccf" / "preload3-pos1.csv.gz", delimiter=",", names=True)
+    step = 2.0**-13
+    for position, noted in ((data["POSITION"], False), (np.round(data["POSITION"] / step) * step, True)):
+        run = HysteresisRun(name="r", time_s=data["TIME"], torque_Nm=data["TORQUE"], angle_rad=position * 2 * math.pi)
+        (out,) = campaign_metrics(Campaign(Reducer("u"), Instrument(), (run,)))["runs"]
+        note = out["metrics"]["play"]["note"]
+        assert ("the play spans 3.2 steps of the angle's quantisation (158 arcsec)" in note) is noted, note
+
+
+@needs_jv
 def test_a_measured_torque_zero_offset_moves_the_play_and_is_named(tmp_path):
     """REAL split preload1-pos1 with its torque shifted: by 0.5 N·m the play read at zero torque
     moves by more than 10 % and its note names the cycles' centre; by 1.5 N·m the play ramps no
@@ -1128,9 +1142,11 @@ def test_measured_play_and_loading_stiffness_match_the_data_authors(key):
     assert abs(row["d_play"]) <= 0.10, row["d_play"]
     assert abs(row["d_stiffness"]) <= 0.10, row["d_stiffness"]
     assert row["ours"]["notes"] == {}
-    # their play ramps centre on zero torque (within 2 % of their amplitude): no offset note
+    # their play ramps centre on zero torque (within 2 % of their amplitude), and their plays span
+    # 18 or more encoder steps: no note on either
     for run in row["ours"]["runs"].values():
         assert "centre at" not in run["metrics"]["play"]["note"]
+        assert "steps of the angle's quantisation" not in run["metrics"]["play"]["note"]
 
 
 def test_play_ramps_of_five_percent_of_the_peak_are_a_class_of_their_own():
