@@ -95,6 +95,41 @@ def test_a_loading_rate_within_the_limit_reads_and_beyond_it_stops(tmp_path):
         load_campaign(path)
 
 
+def _without_time(tmp_path: Path, rate_Hz: float | None) -> Path:
+    """paper-large with the hysteresis files' time column removed and ``sample_rate_Hz`` set
+    (None: removed)."""
+    path = _scaled_copy(tmp_path)
+    for csv in path.parent.glob("hysteresis*.csv"):
+        lines = csv.read_text().splitlines()
+        head = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+        k = lines[head].split(",").index("time_s")
+        csv.write_text("\n".join(lines[:head] + [",".join(c for j, c in enumerate(line.split(",")) if j != k)
+                                                 for line in lines[head:]]) + "\n")
+    text = path.read_text().replace("sample_rate_Hz = 10.0\n", "" if rate_Hz is None else f"sample_rate_Hz = {rate_Hz}\n")
+    path.write_text(text)
+    return path
+
+
+def test_a_hysteresis_run_without_a_time_column_is_timed_by_the_sample_rate(tmp_path):
+    """A bench that logs torque and angle at a fixed rate, without time stamps: with [instrument]
+    sample_rate_Hz the run is timed by it (noted), reads as with its time column and gives the same
+    metrics; at a rate 10× off the loading rate stops it with one line; without a rate, the
+    missing column's line names the key."""
+    from torsionfit.metrics import campaign_metrics
+
+    original = load_campaign(DATA / "paper-large" / "campaign.toml")
+    timed = load_campaign(_without_time(tmp_path / "a", 10.0))
+    for a, b in zip(original.hysteresis_runs, timed.hysteresis_runs):
+        np.testing.assert_allclose(b.time_s, a.time_s - a.time_s[0], atol=1e-9)
+        assert "time from [instrument] sample_rate_Hz = 10 (no time column)" in b.notes
+    assert campaign_metrics(timed)["runs"][0]["metrics"] == campaign_metrics(original)["runs"][0]["metrics"]
+    with pytest.raises(InputError, match=r"hysteresis-1Nm_per_s\.csv: column 'torque_Nm' ramps at 9\.9\d* N·m/s sampled at "
+                                         r"\[instrument\] sample_rate_Hz = 100 .*loading_rate_Nm_per_s = 1;"):
+        load_campaign(_without_time(tmp_path / "b", 100.0))
+    with pytest.raises(InputError, match=r"no time column: .* \(or declare \[instrument\] sample_rate_Hz for a run"):
+        load_campaign(_without_time(tmp_path / "c", None))
+
+
 def test_a_te_time_column_in_ms_stops_on_the_speed(tmp_path):
     path = _scaled_copy(tmp_path, "te-*.csv", "time_s", 1000.0)
     with pytest.raises(InputError) as err:

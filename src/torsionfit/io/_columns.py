@@ -84,14 +84,16 @@ def _by_suffix(header, canonical: str, quantity: str, where: str) -> Column | No
 
 
 def resolve_columns(
-    header, kind: str, columns: dict[str, str], unit_names: dict[str, str], where: str
+    header, kind: str, columns: dict[str, str], unit_names: dict[str, str], where: str,
+    timed_by_rate: bool = False,
 ) -> dict[str, Column]:
     """Find the columns of a run of ``kind`` in ``header``.
 
     ``columns`` and ``unit_names`` are the run's ``[runs.columns]`` and ``[runs.units]``
-    tables (canonical name → file column / unit), already checked to use canonical names.
-    Returns canonical name → Column for every column found; InputError for a required column
-    that is missing, an unknown unit, or an ambiguous choice.
+    tables (canonical name → file column / unit), already checked to use canonical names;
+    ``timed_by_rate``: the manifest declares ``[instrument] sample_rate_Hz``, which times a run
+    without a time column. Returns canonical name → Column for every column found; InputError
+    for a required column that is missing, an unknown unit, or an ambiguous choice.
     """
     found: dict[str, Column] = {}
     for canonical, quantity in CANONICAL[kind].items():
@@ -110,10 +112,14 @@ def resolve_columns(
             if column is not None:
                 found[canonical] = column
     for canonical in REQUIRED[kind]:
+        if canonical == "time" and timed_by_rate:
+            continue
         if canonical not in found:
+            rate = (" (or declare [instrument] sample_rate_Hz for a run sampled at a fixed rate)"
+                    if canonical == "time" else "")
             raise InputError(
                 f"{where}: no {canonical} column: expected {canonical}_<unit> with unit one of "
-                f"{_unit_list(CANONICAL[kind][canonical])}, or a [runs.columns] entry; "
+                f"{_unit_list(CANONICAL[kind][canonical])}, or a [runs.columns] entry{rate}; "
                 f"columns are {', '.join(header)}"
             )
     if kind == "transmission_error":

@@ -236,6 +236,7 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str, reducer: Reduce
         select=select,
         temperature_C=_number(entry, "temperature_C", where),
         encoder_resolution_arcsec=instrument.encoder_resolution_arcsec,
+        sample_rate_Hz=instrument.sample_rate_Hz,
     )
     if kind == "hysteresis":
         return RunSpec(
@@ -269,7 +270,6 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str, reducer: Reduce
         direction=DIRECTIONS[direction],
         te_convention=_convention(entry, where, instrument.te_convention),
         zero_group=_text(entry, "zero_group", where),
-        sample_rate_Hz=instrument.sample_rate_Hz,
     )
 
 

@@ -13,7 +13,7 @@ from ._convention import check_twist_sign
 from ._plausibility import (check_angle_unit, check_encoder_step, check_hysteresis, check_te_direction, check_te_ratio,
                             check_te_torque, check_torque_unit)
 from ._read import Table, drop_trailing_pad, read_table, rows_passing, select_rows
-from ._time_scale import check_loading_rate, check_te_speed, check_te_speed_at_rate
+from ._time_scale import check_loading_rate, check_loading_rate_at_rate, check_te_speed, check_te_speed_at_rate
 from ._wrap import unwrap_full_turns
 
 #: fewest samples a run may have after selection
@@ -58,7 +58,8 @@ class RunSpec:
 def read_run(spec: RunSpec, reducer: Reducer, where: str):
     """Read, select, convert and check one run. ``where`` names the manifest, run and file."""
     table = read_table(spec.path, where)
-    found = resolve_columns(table.header, spec.kind, spec.columns, spec.units, where)
+    found = resolve_columns(table.header, spec.kind, spec.columns, spec.units, where,
+                            timed_by_rate=spec.sample_rate_Hz is not None)
     if spec.select:
         table = select_rows(table, spec.select, where)
     notes = []
@@ -130,9 +131,14 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
             f"check the torque column and its unit, or set peak_torque_Nm for this run (its nominal peak in N·m, "
             f"or \"{PEAK_FROM_DATA}\" for the peak its cycles reach)"
         )
-    if time is not None:  # a hysteresis run always has one today; the check needs it
+    if time is not None:
         check_loading_rate(time, torque, spec.loading_rate_Nm_per_s, where, found["time"].name, found["time"].unit,
                            found["torque"].name, found["torque"].unit)
+    else:  # no time column: the manifest's sample rate times the run (resolve_columns made sure of one)
+        check_loading_rate_at_rate(spec.sample_rate_Hz, torque, spec.loading_rate_Nm_per_s, where,
+                                   found["torque"].name, found["torque"].unit)
+        time = np.arange(len(torque)) / spec.sample_rate_Hz
+        notes.append(f"time from [instrument] sample_rate_Hz = {spec.sample_rate_Hz:g} (no time column)")
     angle, wraps = unwrap_full_turns(si("angle"))
     if wraps:
         notes.append(f"column {found['angle'].name!r} wraps at a full turn {wraps} time(s) (an absolute encoder's "

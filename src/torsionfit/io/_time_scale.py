@@ -108,20 +108,44 @@ def _unit_hint(time_column: str, time_unit: str, other_column: str, other_unit: 
             f"declared value")
 
 
+def _rate_off(time_s, torque_Nm, declared_Nm_per_s: float | None) -> tuple[float, int] | None:
+    """(rate, excursions) of the torque's excursions when more than :data:`RATE_RATIO_LIMIT`×
+    off the declared loading rate; None when nothing is declared, read or off."""
+    if declared_Nm_per_s is None or time_s is None:
+        return None
+    found = excursion_rate_Nm_per_s(time_s, torque_Nm)
+    return found if found is not None and _off(found[0], declared_Nm_per_s) else None
+
+
 def check_loading_rate(time_s, torque_Nm, declared_Nm_per_s: float | None, where: str, time_column: str,
                        time_unit: str, torque_column: str, torque_unit: str) -> None:
     """InputError when the torque's excursions ramp more than :data:`RATE_RATIO_LIMIT`× off the
     declared ``loading_rate_Nm_per_s`` in the run's time stamps (s)."""
-    if declared_Nm_per_s is None or time_s is None:
-        return
-    found = excursion_rate_Nm_per_s(time_s, torque_Nm)
-    if found is None or not _off(found[0], declared_Nm_per_s):
+    found = _rate_off(time_s, torque_Nm, declared_Nm_per_s)
+    if found is None:
         return
     rate, count = found
     raise InputError(
         f"{where}: column {torque_column!r} ramps at {rate:.4g} N·m/s by column {time_column!r} (median of {count} "
         f"excursions between reversals), {_how_far(rate, declared_Nm_per_s)} the declared loading_rate_Nm_per_s = "
         f"{declared_Nm_per_s:g}; {_unit_hint(time_column, time_unit, torque_column, torque_unit)}")
+
+
+def check_loading_rate_at_rate(sample_rate_Hz: float, torque_Nm, declared_Nm_per_s: float | None, where: str,
+                               torque_column: str, torque_unit: str) -> None:
+    """InputError when a hysteresis run without a time column, timed by ``[instrument]
+    sample_rate_Hz``, ramps more than :data:`RATE_RATIO_LIMIT`× off the declared
+    ``loading_rate_Nm_per_s``: the rate, the declared loading rate or the torque unit is wrong."""
+    found = _rate_off(np.arange(len(torque_Nm)) / sample_rate_Hz, torque_Nm, declared_Nm_per_s)
+    if found is None:
+        return
+    rate, count = found
+    raise InputError(
+        f"{where}: column {torque_column!r} ramps at {rate:.4g} N·m/s sampled at [instrument] sample_rate_Hz = "
+        f"{sample_rate_Hz:g} (the run has no time column, so that rate times it; median of {count} excursions "
+        f"between reversals), {_how_far(rate, declared_Nm_per_s)} the declared loading_rate_Nm_per_s = "
+        f"{declared_Nm_per_s:g}; check the rate this run was sampled at (give the run a time column if it differs "
+        f"from [instrument]'s), the unit of column {torque_column!r} (read in {torque_unit}), or the declared rate")
 
 
 def check_te_speed(time_s, output_angle_rad, declared_rpm: float, where: str, time_column: str, time_unit: str,
