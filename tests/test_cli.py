@@ -260,6 +260,16 @@ def test_torsionfits_warnings_are_one_line(capsys):
     show(ExtrapolationWarning("'kd': the decision extrapolates the model (speed 0–30 rpm asked)"),
          ExtrapolationWarning, "x.py", 1)
     assert capsys.readouterr().err == "torsionfit accept: warning: 'kd': the decision extrapolates the model (speed 0–30 rpm asked)\n"
+    # a plain UserWarning raised in torsionfit's code (the fit's notes) is one line too; one
+    # raised elsewhere goes to Python's own display (here pytest's), not ours
+    import torsionfit.report._pipeline as pipeline
+
+    show = _one_line_warnings("fit")
+    show(UserWarning("metrics not computed: play: ..."), UserWarning, pipeline.__file__, 811)
+    assert capsys.readouterr().err == "torsionfit fit: warning: metrics not computed: play: ...\n"
+    for elsewhere in ("/elsewhere/lib.py", "<string>"):
+        show(UserWarning("from a library"), UserWarning, elsewhere, 3)
+        assert "torsionfit fit" not in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("flag, wanted", [(["--sampler", "smc"], ("smc", 1000, 100, 100)),

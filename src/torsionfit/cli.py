@@ -489,12 +489,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _one_line_warnings(command: str):
     """``warnings.showwarning`` that prints torsionfit's own warnings (implausible data,
-    extrapolated decisions, unconverged chains) as one stderr line (``torsionfit CMD: warning:
-    ...``) and any other warning as Python does."""
+    extrapolated decisions, unconverged chains; a torsionfit warning class, or any warning
+    raised in torsionfit's code: the fit's notes on its draws and on the metrics it leaves out)
+    as one stderr line (``torsionfit CMD: warning: ...``) and any other warning as Python does."""
     default = warnings.showwarning
+    package = Path(__file__).resolve().parent
+
+    def ours(category, filename) -> bool:
+        if category.__module__.split(".")[0] == "torsionfit":
+            return True
+        try:
+            return Path(filename).resolve().is_relative_to(package)
+        except (OSError, ValueError):  # a filename that is no path ("<string>")
+            return False
 
     def show(message, category, filename, lineno, file=None, line=None):
-        if category.__module__.split(".")[0] == "torsionfit":
+        if ours(category, filename):
             print(f"torsionfit {command}: warning: {message}", file=sys.stderr, flush=True)
         else:
             default(message, category, filename, lineno, file, line)
