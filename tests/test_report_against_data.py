@@ -159,7 +159,7 @@ def test_ramps_that_form_no_loop_leave_their_metrics_out_of_the_fit_with_the_rea
     from torsionfit.report import FitOptions, fit_campaign, fit_json
     from torsionfit.report._record import record_classes
 
-    t, tau, theta = _loop(knots, fs=25.0)
+    t, tau, theta = _loop(knots, fs=12.5)
     theta += np.random.default_rng(1).normal(0.0, 2e-5, theta.size)
     campaign = Campaign(Reducer("u", rated_torque_Nm=40.0), Instrument(), (
         HysteresisRun(name="r", time_s=t, torque_Nm=tau, angle_rad=theta),))
