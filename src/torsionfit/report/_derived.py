@@ -323,10 +323,10 @@ def derived_metrics_for(campaign: Campaign, model: m.CampaignModel, lost_motion_
                  f"sample), read as the data "
                  f"are: the ±{classes.small.amplitude_Nm:.3g} N·m cycles for the play, the ±{classes.large.amplitude_Nm:.3g} N·m "
                  f"cycles for the loading slope")
-        if classes.play_note is not None:  # the play ramps form no loop: the width of the smallest full cycles
-            where += " (their width stands for the play the loading slope starts past; no play: " + classes.play_note + ")"
         if classes.play_note is None:
             specs.append(MetricSpec("play", "arcmin", f"loop width at zero torque of the smallest cycles: {where}"))
+        else:  # the play ramps form no loop: the width of the smallest full cycles stands in
+            where += " (their width stands for the play the loading slope starts past; no play: " + classes.play_note + ")"
         if classes.loading_note is None:
             specs += [
                 MetricSpec("stiffness_loading", "Nm/arcmin", "1 / mean of the + and − loading-branch compliances of the largest cycles, beyond half the play from the loop centre up to the peak (the data authors' definition), "

@@ -49,7 +49,8 @@ class RecordClasses:
 
 def record_classes(campaign: Campaign) -> RecordClasses | None:
     """:class:`RecordClasses` of ``campaign``; None without a hysteresis run whose cycles can
-    be grouped (``metrics.cycle_classes``)."""
+    be grouped (``metrics.cycle_classes``), or when neither the play nor the loading slope can
+    be read (both the smallest and the largest ramps form no loop)."""
     grouped = []
     for run in campaign.hysteresis_runs:
         try:
