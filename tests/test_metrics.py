@@ -1084,6 +1084,12 @@ def test_a_measured_torque_zero_offset_moves_the_play_and_is_named(tmp_path):
     moved = value(plays[0.5]["metrics"], "play") / value(plays[0.0]["metrics"], "play") - 1
     assert abs(moved) > 0.10 and "these cycles centre at +0.5" in plays[0.5]["metrics"]["play"]["note"]
     assert "play" not in plays[1.5]["metrics"] and "zero offset" in plays[1.5]["notes"]["play"]
+    # the stiffness ramps (±40 N·m) centre 1.5 N·m off zero: 4 % of their amplitude, noted (the
+    # slope read moved by 4.8 %)
+    shifted = value(plays[1.5]["metrics"], "stiffness_loading") / value(plays[0.0]["metrics"], "stiffness_loading")
+    assert shifted == pytest.approx(1.048, abs=0.005)
+    assert "centre at" not in plays[0.5]["metrics"]["stiffness_loading"]["note"]
+    assert "these cycles centre at +1.5 N·m, 4 % of their amplitude" in plays[1.5]["metrics"]["stiffness_loading"]["note"]
 
 
 @needs_jv
@@ -1145,7 +1151,7 @@ def test_measured_play_and_loading_stiffness_match_the_data_authors(key):
     # their play ramps centre on zero torque (within 2 % of their amplitude), and their plays span
     # 18 or more encoder steps: no note on either
     for run in row["ours"]["runs"].values():
-        assert "centre at" not in run["metrics"]["play"]["note"]
+        assert "centre at" not in run["metrics"]["play"]["note"] + run["metrics"]["stiffness_loading"]["note"]
         assert "steps of the angle's quantisation" not in run["metrics"]["play"]["note"]
 
 

@@ -1185,6 +1185,10 @@ PLAY_STEPS_NOTE = 10.0
 #: carries a note: the width at zero torque moves with the torque's zero (the measured
 #: cycloidal play ramps centre within 2 % of their amplitude)
 PLAY_CENTRE_NOTE_FRACTION = 0.1
+#: ... and a loading slope whose cycles centre further than this fraction of their amplitude off
+#: zero (REAL split preload1-pos1 with its torque shifted 1.5 N·m, 3.8 % of its ±40 N·m ramps:
+#: the slope moved by 4.8 %; the measured stiffness ramps centre within 1.9 %)
+LOADING_CENTRE_NOTE_FRACTION = 0.03
 #: a run whose only amplitude class stays below this fraction of the rated torque holds play
 #: ramps, no stiffness ramps: its loading slope is not reported
 STIFFNESS_RAMP_FRACTION = 0.5
@@ -1283,6 +1287,10 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
     if no_play is not None:
         span += (f"; the play ramps form no loop: half the ±{small.amplitude_Nm:.3g} N·m cycles' width "
                  f"stands for half the play")
+    if abs(large.centre_Nm) > LOADING_CENTRE_NOTE_FRACTION * large.amplitude_Nm:
+        span += (f"; these cycles centre at {large.centre_Nm:+.3g} N·m, "
+                 f"{100 * abs(large.centre_Nm) / large.amplitude_Nm:.0f} % of their amplitude off zero torque: a "
+                 f"torque zero offset shifts the ranges the + and − slopes are read over")
     out["stiffness_loading"] = _entry(
         from_si(fit.stiffness, "stiffness", "Nm/arcmin"),
         "Nm/arcmin",
