@@ -11,6 +11,8 @@ positions of a configuration are averaged: the play, and the + and − complianc
 """
 
 import argparse
+import csv
+import gzip
 import re
 import sys
 import tempfile
@@ -77,9 +79,31 @@ def authors_numbers(readme: Path = DATA / "README.md") -> dict[tuple[str, str], 
     return out
 
 
+def fault_rows(path: Path) -> int:
+    """Rows of a measured file whose controller ``FAULT`` code is not 0 (0 without the column:
+    the data README's files carry it; on the 21 files here it is 0 throughout)."""
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt", newline="") as fh:
+        reader = csv.reader(fh)
+        header = next(reader, [])
+        if "FAULT" not in header:
+            return 0
+        k = header.index("FAULT")
+        return sum(1 for row in reader if len(row) > k and row[k].strip() not in ("", "0", "0.0"))
+
+
+def fault_line(path: Path) -> str | None:
+    """One stderr line naming a file with controller-fault rows, None without them."""
+    n = fault_rows(path)
+    return None if not n else (f"{path}: {n} row(s) with a controller FAULT code other than 0, read as they are "
+                               f"(a manifest's [runs.select] FAULT = [0] leaves them out)")
+
+
 def file_metrics(folder: str, stem: str, workdir: Path) -> dict:
     """``torsionfit metrics`` of one whole file: ``{"metrics", "notes"}`` of its one run."""
     path = DATA / folder / f"{stem}.csv.gz"
+    if (line := fault_line(path)) is not None:
+        print(line, file=sys.stderr)
     manifest = workdir / folder / stem / "campaign.toml"
     manifest.parent.mkdir(parents=True, exist_ok=True)
     manifest.write_text(

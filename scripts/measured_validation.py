@@ -1131,6 +1131,11 @@ def _main(args) -> int:
     reasons = {unit: not_validated(unit) for unit in units}
     for reason in filter(None, reasons.values()):
         print(f"not validated: {reason}", file=sys.stderr)
+    from measured_metrics import fault_line
+
+    for unit in units:
+        if reasons[unit] is None and (line := fault_line(_data_path(unit))) is not None:
+            print(line, file=sys.stderr)
     units = [unit for unit in units if reasons[unit] is None]
     args.output.mkdir(parents=True, exist_ok=True)
     kept = _kept_rows(args, units)  # checked before any fit

@@ -53,6 +53,25 @@ def test_authors_rows_without_their_sides_or_with_a_hyphenated_state_are_read(tm
     assert numbers[("split-pla", "initial")]["compliance"] == 0.110
 
 
+def test_a_file_with_controller_fault_rows_is_named(tmp_path):
+    """Rows whose controller FAULT code is not 0 are counted and the file named in one line (the
+    README's files carry the column; a REAL file here has none set)."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import measured_metrics
+
+    faulty = tmp_path / "initial-pos1.csv"
+    faulty.write_text("TIME,POSITION,TORQUE,FAULT,test_nr\n0,0,0,0,0\n0.1,0,1,3,0\n0.2,0,2,3,0\n0.3,0,1,0,0\n")
+    assert measured_metrics.fault_rows(faulty) == 2
+    line = measured_metrics.fault_line(faulty)
+    assert line.startswith(f"{faulty}: 2 row(s) with a controller FAULT code other than 0") and "\n" not in line
+    plain = tmp_path / "plain.csv"
+    plain.write_text("TIME,POSITION,TORQUE,test_nr\n0,0,0,0\n")
+    assert measured_metrics.fault_rows(plain) == 0 and measured_metrics.fault_line(plain) is None
+    assert measured_metrics.fault_rows(DATA / "split-pccf" / "preload3-pos1.csv.gz") == 0
+
+
 def test_units_are_named_one_by_one_or_by_design():
     split = mv.select_units(["split-pccf"])
     assert len(split) == 15 and all(u.startswith("split-pccf-") for u in split)
