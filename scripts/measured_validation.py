@@ -151,10 +151,10 @@ def not_validated(unit: str) -> str | None:
             run = load_campaign(manifest(unit, None, Path(folder))).runs[0]
             # the play and the loading slope are read off loops: ramps that form none give neither to compare
             classes = cycle_classes(run.time_s, run.torque_Nm, run.angle_rad, name=unit)
-            classes.play_class(unit), classes.loading_class(unit)
         except InputError as err:
-            return f"{path}: {err}" if str(path) not in str(err) else str(err)
-    return None
+            return str(err)
+    why = classes.no_play_reason(unit) or classes.no_loading_reason(unit)
+    return None if why is None else f"{path}: {why}"
 
 
 def select_units(names: list[str] | None) -> list[str]:
@@ -450,9 +450,9 @@ def data_metrics(t, tau, y, unit: str) -> dict:
     """Data-only play and loading compliance of one file (deg, deg/N·m), and the loading
     compliance branch by branch: its cycle-to-cycle scatter."""
     classes = cycle_classes(t, tau, y, name=unit)
-    play = play_of(classes.play_class(unit))
-    fit = loading_fit(classes.loading_class(unit), play, name=unit)
-    pos, neg = loading_compliance_cycles(classes.loading_class(unit), play, name=unit)
+    play, large = play_of(classes.play_class(unit)), classes.loading_class(unit)
+    fit = loading_fit(large, play, name=unit)
+    pos, neg = loading_compliance_cycles(large, play, name=unit)
     return {"play_data_deg": play / DEG, "compliance_data_deg_per_Nm": [fit.compliance_pos / DEG, fit.compliance_neg / DEG],
             "compliance_data_cycles_deg_per_Nm": {"pos": (pos / DEG).tolist(), "neg": (neg / DEG).tolist()}}
 

@@ -453,44 +453,52 @@ class CycleClasses:
         """The smallest class that forms a loop (both directions)."""
         return self.classes[0]
 
-    def play_class(self, name: str = "run") -> AmplitudeClass:
-        """The class ``play`` is read from: the smallest cycles. Raises :class:`InputError`
-        when ramps smaller than the smallest loop ran in one direction only — e.g. a single play
-        ramp 0 → + → − → 0, whose one decreasing branch has no increasing branch to measure the
-        width against: the play ramps form no loop, and the next cycles' width is not their
-        play (friction at the larger load widens it); or when smaller ramps cycle about a torque
-        too far off zero to cross it as cycles (:attr:`off_centre_ramps_Nm`: a torque zero
-        offset), the play being read at zero torque."""
+    def no_play_reason(self, name: str = "run") -> str | None:
+        """Why ``play`` cannot be read (one line), None when it can: ramps smaller than the
+        smallest loop ran in one direction only — e.g. a single play ramp 0 → + → − → 0, whose
+        one decreasing branch has no increasing branch to measure the width against: the play
+        ramps form no loop, and the next cycles' width is not their play (friction at the larger
+        load widens it); or smaller ramps cycle about a torque too far off zero to cross it as
+        cycles (:attr:`off_centre_ramps_Nm`: a torque zero offset), the play being read at zero
+        torque."""
         off = [(lo, hi) for lo, hi in self.off_centre_ramps_Nm if max(-lo, hi) < self.smallest.amplitude_Nm]
         if off:
             lo, hi = min(off, key=lambda r: r[1] - r[0])
-            raise InputError(
-                f"hysteresis run {name!r}: {_off_centre_text(lo, hi)}; the play is read at zero torque. The "
-                f"±{self.smallest.amplitude_Nm:.3g} N·m cycles' width is their backlash, not the play"
-            )
+            return (f"hysteresis run {name!r}: {_off_centre_text(lo, hi)}; the play is read at zero torque. The "
+                    f"±{self.smallest.amplitude_Nm:.3g} N·m cycles' width is their backlash, not the play")
         smaller = [a for a in self.dropped_amplitudes_Nm if a < self.smallest.amplitude_Nm]
         if smaller:
-            raise InputError(
-                f"hysteresis run {name!r}: its smallest ramps (±{min(smaller):.3g} N·m) run in one direction "
-                f"only, no loop at zero torque to read the play from (a play ramp 0 → + → − → 0 alone has one "
-                f"full branch); expected at least two such ramps in a row. The ±{self.smallest.amplitude_Nm:.3g} "
-                f"N·m cycles' width is their backlash, not the play"
-            )
+            return (f"hysteresis run {name!r}: its smallest ramps (±{min(smaller):.3g} N·m) run in one direction "
+                    f"only, no loop at zero torque to read the play from (a play ramp 0 → + → − → 0 alone has one "
+                    f"full branch); expected at least two such ramps in a row. The ±{self.smallest.amplitude_Nm:.3g} "
+                    f"N·m cycles' width is their backlash, not the play")
+        return None
+
+    def no_loading_reason(self, name: str = "run") -> str | None:
+        """Why the loading slope cannot be read (one line), None when it can: ramps larger than
+        the largest loop ran in one direction only (a single stiffness ramp 0 → + → − → 0): the
+        smaller cycles' slope is not the stiffness ramps' (on a real reducer the gap and friction
+        weigh more there)."""
+        larger = [a for a in self.dropped_amplitudes_Nm if a > self.largest.amplitude_Nm]
+        if larger:
+            return (f"hysteresis run {name!r}: its largest ramps (±{max(larger):.3g} N·m) run in one direction "
+                    f"only, no loop to read the loading slope from (a ramp 0 → + → − → 0 alone has one full "
+                    f"branch); expected at least two such ramps in a row. The ±{self.largest.amplitude_Nm:.3g} "
+                    f"N·m cycles are not the stiffness ramps")
+        return None
+
+    def play_class(self, name: str = "run") -> AmplitudeClass:
+        """The class ``play`` is read from, the smallest cycles; :class:`InputError` with
+        :meth:`no_play_reason` when there is none."""
+        if (why := self.no_play_reason(name)) is not None:
+            raise InputError(why)
         return self.smallest
 
     def loading_class(self, name: str = "run") -> AmplitudeClass:
-        """The class the loading slope is read from: the largest cycles. Raises
-        :class:`InputError` when ramps larger than the largest loop ran in one direction only
-        (a single stiffness ramp 0 → + → − → 0): the smaller cycles' slope is not the
-        stiffness ramps' (on a real reducer the gap and friction weigh more there)."""
-        larger = [a for a in self.dropped_amplitudes_Nm if a > self.largest.amplitude_Nm]
-        if larger:
-            raise InputError(
-                f"hysteresis run {name!r}: its largest ramps (±{max(larger):.3g} N·m) run in one direction "
-                f"only, no loop to read the loading slope from (a ramp 0 → + → − → 0 alone has one full "
-                f"branch); expected at least two such ramps in a row. The ±{self.largest.amplitude_Nm:.3g} "
-                f"N·m cycles are not the stiffness ramps"
-            )
+        """The class the loading slope is read from, the largest cycles; :class:`InputError`
+        with :meth:`no_loading_reason` when there is none."""
+        if (why := self.no_loading_reason(name)) is not None:
+            raise InputError(why)
         return self.largest
 
     @property
@@ -1194,6 +1202,12 @@ LOADING_CENTRE_NOTE_FRACTION = 0.03
 STIFFNESS_RAMP_FRACTION = 0.5
 
 
+def _off_zero_text(cls: AmplitudeClass) -> str:
+    """How far ``cls``'s cycles centre off zero torque, for a metric's note."""
+    return (f"these cycles centre at {cls.centre_Nm:+.3g} N·m, {100 * abs(cls.centre_Nm) / cls.amplitude_Nm:.0f} % "
+            f"of their amplitude off zero torque")
+
+
 def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[dict, dict]:
     """``play``, ``stiffness_loading`` and the loading compliances of one run, with notes for
     those that cannot be computed."""
@@ -1207,11 +1221,7 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
     # one class, and no ramps of another amplitude that formed no loop
     single = len(classes.classes) == 1 and not classes.dropped_amplitudes_Nm
     deg = lambda a: from_si(a, "angle", "deg")  # noqa: E731
-    try:
-        classes.play_class(run.name)
-        no_play = None
-    except InputError as err:  # the play ramps form no loop: no play, the loading slope still
-        no_play = str(err)
+    no_play = classes.no_play_reason(run.name)  # the play ramps form no loop: no play, the loading slope still
     play = play_of(small)
     if play < 0:
         # friction and gap open a loop the other way: a negative width is a reversed sign
@@ -1235,10 +1245,7 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
             f"arcsec): read to about a step"
         )
     if abs(small.centre_Nm) > PLAY_CENTRE_NOTE_FRACTION * small.amplitude_Nm:
-        play_note += (
-            f"; these cycles centre at {small.centre_Nm:+.3g} N·m, {100 * abs(small.centre_Nm) / small.amplitude_Nm:.0f} % "
-            f"of their amplitude off zero torque: a torque zero offset moves the play read at zero torque"
-        )
+        play_note += f"; {_off_zero_text(small)}: a torque zero offset moves the play read at zero torque"
     if single:
         play_note += (
             "; the run has one amplitude class only: if these are large stiffness ramps rather "
@@ -1255,10 +1262,9 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
         and rated_torque_Nm is not None
         and large.amplitude_Nm < STIFFNESS_RAMP_FRACTION * float(rated_torque_Nm)
     )
-    try:
-        classes.loading_class(run.name)
-    except InputError as err:  # the stiffness ramps form no loop: the smaller cycles' slope is not theirs
-        notes.update({name: str(err) for name in CLASS_METRICS[1:]})
+    no_loading = classes.no_loading_reason(run.name)
+    if no_loading is not None:  # the stiffness ramps form no loop: the smaller cycles' slope is not theirs
+        notes.update({name: no_loading for name in CLASS_METRICS[1:]})
         return out, notes
     if small_only:
         why = (
@@ -1288,9 +1294,7 @@ def _class_metrics(run: HysteresisRun, rated_torque_Nm: float | None) -> tuple[d
         span += (f"; the play ramps form no loop: half the ±{small.amplitude_Nm:.3g} N·m cycles' width "
                  f"stands for half the play")
     if abs(large.centre_Nm) > LOADING_CENTRE_NOTE_FRACTION * large.amplitude_Nm:
-        span += (f"; these cycles centre at {large.centre_Nm:+.3g} N·m, "
-                 f"{100 * abs(large.centre_Nm) / large.amplitude_Nm:.0f} % of their amplitude off zero torque: a "
-                 f"torque zero offset shifts the ranges the + and − slopes are read over")
+        span += f"; {_off_zero_text(large)}: a torque zero offset shifts the ranges the + and − slopes are read over"
     out["stiffness_loading"] = _entry(
         from_si(fit.stiffness, "stiffness", "Nm/arcmin"),
         "Nm/arcmin",

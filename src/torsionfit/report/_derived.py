@@ -27,7 +27,7 @@ from .._chunks import CHUNK, map_chunks
 from ..io import Campaign
 from ..metrics._campaign import reference_run_for
 from .._errors import InputError
-from ..metrics._hysteresis import class_loading_rate
+from ..metrics._hysteresis import CLASS_METRICS, class_loading_rate
 from ..metrics._te import TE_WINDOW_DEG, in_te_window, te_reading
 from ..units import ANGLE_UNITS, SPEED_UNITS, STIFFNESS_UNITS
 from ._record import RecordReader, record_classes, record_params, record_reader
@@ -145,8 +145,7 @@ class DerivedMetrics(eqx.Module):
         """``{metric: why}`` of the class metrics the data's record gives no reading of."""
         out = {} if self.play_note is None else {"play": self.play_note}
         if self.loading_note is not None:
-            out |= {name: self.loading_note for name in ("stiffness_loading", "compliance_loading_pos",
-                                                         "compliance_loading_neg")}
+            out |= {name: self.loading_note for name in CLASS_METRICS[1:]}
         return out
 
     def evaluate(self, values: dict) -> jnp.ndarray:

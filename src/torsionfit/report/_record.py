@@ -61,17 +61,11 @@ def record_classes(campaign: Campaign) -> RecordClasses | None:
         return None
     small_run, small_classes = min(grouped, key=lambda g: g[1].smallest.amplitude_Nm)
     large_run, large_classes = max(grouped, key=lambda g: g[1].largest.amplitude_Nm)
-    notes = []
-    for read in (lambda: small_classes.play_class(small_run.name), lambda: large_classes.loading_class(large_run.name)):
-        try:
-            read()
-            notes.append(None)
-        except InputError as err:
-            notes.append(str(err))
-    if all(notes):
+    play_note, loading_note = small_classes.no_play_reason(small_run.name), large_classes.no_loading_reason(large_run.name)
+    if play_note is not None and loading_note is not None:
         return None  # neither the play nor the loading slope: no record to read
     return RecordClasses(small_run, small_classes.smallest, small_classes, large_run, large_classes.largest, large_classes,
-                         *notes)
+                         play_note, loading_note)
 
 
 class _Mean(eqx.Module):
