@@ -26,6 +26,9 @@ class Instrument:
     torque_accuracy_pct_fs: float | None = None
     encoder_resolution_arcsec: float | None = None
     sample_rate_Hz: float | None = None
+    #: the motor (input) encoder's resolution: the angle of one count of an input_angle
+    #: column logged in counts (arcsec)
+    input_encoder_resolution_arcsec: float | None = None
     #: sign of TE in the bench's files: "lag_positive" (a load that makes the output lag gives
     #: positive TE) or "lag_negative" (negated on reading); a run may override it
     te_convention: str = "lag_positive"

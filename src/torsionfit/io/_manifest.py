@@ -20,7 +20,7 @@ import numpy as np
 from .. import units
 from .._errors import InputError
 from ._campaign import Campaign, HysteresisRun, Instrument, Reducer, TransmissionErrorRun
-from ._columns import CANONICAL
+from ._columns import CANONICAL, check_unit
 from ._convention import check_te_convention
 from ._runs import PEAK_FROM_DATA, RunSpec, read_run
 from ._te_twist import check_te_twist
@@ -37,6 +37,7 @@ _INSTRUMENT_KEYS = (
     "torque_accuracy_pct_fs",
     "encoder_resolution_arcsec",
     "sample_rate_Hz",
+    "input_encoder_resolution_arcsec",
 )
 _COMMON_RUN_KEYS = ("name", "kind", "file", "columns", "units", "select", "temperature_C")
 _RUN_KEYS = {
@@ -236,6 +237,7 @@ def _run_spec(index: int, entry: dict, folder: Path, shown: str, reducer: Reduce
         select=select,
         temperature_C=_number(entry, "temperature_C", where),
         encoder_resolution_arcsec=instrument.encoder_resolution_arcsec,
+        input_encoder_resolution_arcsec=instrument.input_encoder_resolution_arcsec,
         sample_rate_Hz=instrument.sample_rate_Hz,
     )
     if kind == "hysteresis":
@@ -308,7 +310,7 @@ def _unit_map(entry: dict, kind: str, columns: dict[str, str], where: str) -> di
                 f"{where}: [runs.units] {name} has no [runs.columns] {name} entry; units are "
                 f"only given for mapped columns (default columns carry theirs, e.g. angle_deg)"
             )
-        units.factor(CANONICAL[kind][name], unit, f"{where}: [runs.units] {name}")
+        check_unit(CANONICAL[kind][name], unit, f"{where}: [runs.units] {name}")
     return unit_names
 
 

@@ -125,10 +125,13 @@ def check_hysteresis(torque_Nm, angle_rad, rated_torque_Nm, where: str, angle_co
         at, who = f"its peak {scale:.4g} N·m (no rated_torque_Nm)", "a reducer loaded that far"
     if low <= twist <= high:
         return
-    declared = units.ANGLE_UNITS[angle_unit]
-    fits = [f"{twist * f / declared:.3g} arcmin if the column held {u}"
-            for u, f in units.ANGLE_UNITS.items()
-            if u != angle_unit and low <= twist * f / declared <= high]
+    if angle_unit in units.ANGLE_UNITS:
+        declared = units.ANGLE_UNITS[angle_unit]
+        fits = [f"{twist * f / declared:.3g} arcmin if the column held {u}"
+                for u, f in units.ANGLE_UNITS.items()
+                if u != angle_unit and low <= twist * f / declared <= high]
+    else:  # encoder counts: their size is the declared resolution, not a unit to slip
+        fits = ["is [instrument] encoder_resolution_arcsec, the angle of one count, right?"]
     if ratio and ratio > 1 and low <= twist / ratio <= high:
         # the motor encoder's angle, not yet expressed at the output
         fits.append(f"{twist / ratio:.3g} arcmin if the column held the input angle, to be divided by "
@@ -196,8 +199,8 @@ def check_angle_unit(torque_Nm, angle_rad, rated_torque_Nm: float | None, resolu
         return
     q = quantisation_step(angle_rad)
     secant = secant_twist(torque_Nm, angle_rad, rated_torque_Nm)
-    if q is None or secant is None:
-        return
+    if q is None or secant is None or unit not in units.ANGLE_UNITS:
+        return  # in encoder counts the step is the resolution by construction
     twist, scale, low, high = secant
     if low <= twist <= high:
         return
@@ -340,10 +343,11 @@ def check_te_ratio(output_angle_rad, input_angle_rad, ratio: float, where: str, 
         fits = [f"column {column!r} holding {other}"
                 for column, unit, power in ((input_column, input_unit, 1), (output_column, output_unit, -1))
                 for other, factor in units.ANGLE_UNITS.items()
-                if other != unit and abs(found * (factor / units.ANGLE_UNITS[unit]) ** power / ratio - 1.0)
-                <= TE_RATIO_TOLERANCE]
+                if unit in units.ANGLE_UNITS and other != unit
+                and abs(found * (factor / units.ANGLE_UNITS[unit]) ** power / ratio - 1.0) <= TE_RATIO_TOLERANCE]
         hint = (f"{' or '.join(fits)} would turn them at the ratio: declare its unit (the column name's suffix, or "
-                f"[runs.units])" if fits else "check [reducer] ratio and the units of both columns")
+                f"[runs.units])" if fits else "check [reducer] ratio and the units of both columns (for counts, the "
+                f"[instrument] encoder resolutions)")
     raise InputError(f"{where}: columns {input_column!r} ({input_unit}) and {output_column!r} ({output_unit}) turn "
                      f"{found:.5g}:1 over the run, where [reducer] ratio = {ratio:g}; te = output − input / ratio "
                      f"would drift {drift_arcmin:.4g} arcmin per output revolution; {hint}")

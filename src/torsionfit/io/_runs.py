@@ -50,7 +50,8 @@ class RunSpec:
     te_convention: str = "lag_positive"  # the run's, else [instrument]'s
     zero_group: str | None = None
     sample_rate_Hz: float | None = None  # [instrument]; gives time to runs without a time column
-    encoder_resolution_arcsec: float | None = None  # [instrument]; checks the angle unit
+    encoder_resolution_arcsec: float | None = None  # [instrument]; checks the angle unit, sizes a count
+    input_encoder_resolution_arcsec: float | None = None  # [instrument]; sizes a count of input_angle
     # both kinds
     temperature_C: float | None = None
 
@@ -58,8 +59,10 @@ class RunSpec:
 def read_run(spec: RunSpec, reducer: Reducer, where: str):
     """Read, select, convert and check one run. ``where`` names the manifest, run and file."""
     table = read_table(spec.path, where)
+    count_arcsec = {"angle": spec.encoder_resolution_arcsec, "output_angle": spec.encoder_resolution_arcsec,
+                    "input_angle": spec.input_encoder_resolution_arcsec}
     found = resolve_columns(table.header, spec.kind, spec.columns, spec.units, where,
-                            timed_by_rate=spec.sample_rate_Hz is not None)
+                            timed_by_rate=spec.sample_rate_Hz is not None, count_arcsec=count_arcsec)
     if spec.select:
         table = select_rows(table, spec.select, where)
     notes = []
