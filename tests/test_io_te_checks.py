@@ -71,6 +71,41 @@ def test_a_printed_units_te_at_a_quarter_of_its_rating_alone_reads_without_a_wor
     assert plausibility_warnings(manifest) == []
 
 
+def _keep_runs(manifest: Path, keep) -> int:
+    """Rewrite ``manifest`` with the run blocks whose text ``keep`` accepts; their number."""
+    blocks = manifest.read_text().split("[[runs]]")
+    kept = [b for b in blocks[1:] if keep(b)]
+    manifest.write_text("[[runs]]".join([blocks[0]] + kept))
+    return len(kept)
+
+
+def test_one_direction_per_rezeroed_test_says_the_te_gives_no_twist(tmp_path):
+    """The export's bench re-zeroes before every test; with only the forward revolutions kept,
+    every zero group holds one load in one direction: the groups' TE zeros absorb the twist and
+    a TE-only fit's stiffness is its prior (a fit of it: 398 ± 1100 N·m/arcmin, truth 200). One
+    line naming zero_group. Kept both ways, or sharing one zero, the runs read without a word."""
+    manifest = _written(tmp_path, EXPORT)
+    assert _keep_runs(manifest, lambda b: 'direction = "forward"' in b) == 5
+    (message,) = plausibility_warnings(manifest)
+    assert "every TE zero group holds runs at one load in one direction" in message
+    assert "TE_486rpm_250Nm_40C: 250 N·m forward" in message and "zero_group" in message
+    assert "are their priors" in message
+    # the same forward runs under one encoder zero: loads apart in one group give the stiffness
+    manifest.write_text(re.sub(r'zero_group = "[^"]*"\n', "", manifest.read_text()))
+    assert plausibility_warnings(manifest) == []
+
+
+def test_one_te_run_beside_loops_reads_without_a_word(tmp_path):
+    """Loops and one TE run (for its ripple) is a common layout: the loops carry the twist."""
+    manifest = _written(tmp_path, WITH_LOOPS)
+    assert _keep_runs(manifest, lambda b: 'kind = "hysteresis"' in b or 'name = "te-40C-fw"' in b) == 2
+    assert plausibility_warnings(manifest) == []
+    # the TE run alone: nothing else carries the twist
+    assert _keep_runs(manifest, lambda b: 'name = "te-40C-fw"' in b) == 1
+    (message,) = plausibility_warnings(manifest)
+    assert "(shared): " in message and "are their priors" in message
+
+
 def test_te_in_arcsec_declared_arcmin_beside_loops_stops_naming_arcsec(tmp_path):
     """60× the loops' compliance, and in arcsec the TE agrees with them: two readings, a stop."""
     manifest = _written(tmp_path, WITH_LOOPS)

@@ -24,6 +24,7 @@ from ._columns import CANONICAL, check_unit
 from ._convention import check_te_convention
 from ._runs import PEAK_FROM_DATA, RunSpec, read_run
 from ._te_twist import check_te_twist
+from ._te_zeros import check_te_zero_groups
 
 MANIFEST_NAME = "campaign.toml"
 KINDS = ("hysteresis", "transmission_error")
@@ -101,6 +102,7 @@ def load_campaign(path) -> Campaign:
     )
     check_te_convention(runs, shown)
     check_te_twist(runs, reducer.rated_torque_Nm, shown)
+    check_te_zero_groups(runs, shown)
     return Campaign(reducer, instrument, runs, path=manifest.resolve(), notes=label)
 
 
