@@ -27,6 +27,7 @@ import pytest
 from torsionfit import InputError
 from torsionfit.bench import load_bench, simulate
 from torsionfit.fit import NoiseOptions, build_problem, fit_map, log_density
+from torsionfit.fit._contraction import prior_dominated, prior_dominated_note
 from torsionfit.io import Campaign
 from torsionfit.model import CampaignModel, NoBacklash, model_with_effects
 
@@ -390,6 +391,16 @@ def test_te_only_friction_needs_both_directions():
     print("[identifiability] " + gap_message)
     assert corr_fg < -0.9, gap_message
     assert sd_gap_f > 0.5 * prior_sd_f, gap_message
+
+    # what a fit says of it (fit/_contraction.py, on Laplace draws): one direction leaves the
+    # friction its prior's and names it; both directions inform it; the stiffness always
+    rng = np.random.default_rng(0)
+    found = [prior_dominated(r.problem, rng.multivariate_normal(np.asarray(r.u), np.asarray(r.cov), size=4000))
+             for r in (one, both)]
+    print(f"[identifiability] prior-dominated: one direction {found[0]}, both {found[1]}")
+    assert "friction_torque" in found[0] and "stiffness" not in found[0], found[0]
+    assert "friction_torque" not in found[1] and "stiffness" not in found[1], found[1]
+    assert "friction_torque" in prior_dominated_note(found[0], one.problem)
 
 
 # --- 5. bad input ------------------------------------------------------------------------------

@@ -190,6 +190,11 @@ def test_declared_export_fit_recovers_the_stiffness(export, declared_fit):
     k = doc["metrics"]["stiffness_elastic"]
     assert k["mean"] == pytest.approx(K, rel=0.03)
     assert k["hdi95"][0] <= K <= k["hdi95"][1], k
+    # TE runs never reverse: the friction's pre-sliding torque is the prior's, and fit.json says so
+    # (the stiffness, seen through the loads within each test, is not)
+    prior = doc["diagnostics"]["prior_dominated"]
+    assert "dahl_torque" in prior and "stiffness" not in prior, prior
+    assert "dahl_torque" in doc["diagnostics"]["prior_dominated_note"]
     offsets = np.asarray(fit.map_result.values["te_offset"]) / ARCMIN
     np.testing.assert_allclose(offsets - offsets[0], np.asarray(SHIFTS_ARCMIN) - SHIFTS_ARCMIN[0], atol=0.05)
     for way in ("fw", "bw"):  # the truth's K_d against no load (the gap's pre-load makes it ≠ K)

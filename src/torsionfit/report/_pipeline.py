@@ -26,6 +26,7 @@ from ..fit._map import nested_start
 from ..fit._prior import cycle_friction_readings_Nm
 from ..fit._noise_classes import _residuals, class_shares, refit_with_class_noise
 from ..fit._misfit import MISFIT_RHO, misfit_correlated_runs, widen_for_misfit
+from ..fit._contraction import prior_dominated, prior_dominated_note
 from ..io import Campaign, decimate
 from ..model import RelayGapBacklash, SteppedBacklash, model_with_effects
 from ..units import ANGLE_UNITS
@@ -790,6 +791,12 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
         diagnostics["conditioning_samples"] = {n: int(np.sum(~k)) for n, k in zip(names, problem.kept_samples())}
     if near_bound:
         diagnostics["noise_note"] = noise_note(near_bound)
+    # a parameter the runs do not see keeps its prior's width: its value is the prior's
+    diagnostics["prior_dominated"] = prior_dominated(problem, draws_u)
+    note = prior_dominated_note(diagnostics["prior_dominated"], problem)
+    if note:
+        diagnostics["prior_dominated_note"] = note
+        warnings.warn(note)
 
     derived = derived_metrics_for(campaign, model, options.lost_motion_pct)
     linear = derived.reads_linear()
