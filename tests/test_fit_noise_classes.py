@@ -214,6 +214,15 @@ def test_conditioning_first_excursions_leaves_them_out_of_the_fit():
     assert abs(_conditioned_fit(shaken, True) / clean - 1) < 0.002
 
 
+def _a_point(problem):
+    """A point of ``problem``'s u (the priors' means, noise levels of a few arcsec): the
+    identities below hold at any point, so no fit is needed to reach one."""
+    import jax.numpy as jnp
+
+    return jnp.asarray(np.concatenate([np.asarray(problem.prior_mean), np.full(problem.n_runs, np.log(1e-5)),
+                                       np.zeros(problem.n_ar1)]))
+
+
 @pytest.mark.parametrize("ar1", [False, True])
 def test_samples_out_of_the_likelihood_weigh_nothing(campaign, ar1):
     """With the first excursions conditioning, the log density and the closed-form noise update
@@ -231,7 +240,8 @@ def test_samples_out_of_the_likelihood_weigh_nothing(campaign, ar1):
     problem = build_problem(three, model, noise)
     keep = problem.kept_samples()
     assert all(0 < np.sum(~k) < k.size for k in keep)  # each run has conditioning samples and others
-    u = jnp.asarray(fit_map(problem, [r.name for r in three.runs], n_starts=1, seed=0).u)
+    u = _a_point(problem)
+    assert u.size == problem.dim and np.isfinite(float(problem.log_density(u)))
 
     import equinox as eqx
 
@@ -273,8 +283,6 @@ def test_declared_conditioning_rows_are_the_option_by_hand(campaign):
     """A run's conditioning rows ([runs.condition]) leave the likelihood as the option's first
     excursions do: the same rows declared give the same kept samples and the same log density;
     both together keep the samples neither leaves out."""
-    import jax.numpy as jnp
-
     from torsionfit.fit._noise_classes import conditioning_keep
 
     declared = dataclasses.replace(campaign, runs=tuple(
@@ -285,7 +293,7 @@ def test_declared_conditioning_rows_are_the_option_by_hand(campaign):
     b = build_problem(declared, model, NoiseOptions(ar1=False))
     assert all(np.array_equal(x, y) for x, y in zip(a.kept_samples(), b.kept_samples()))
     assert not all(k.all() for k in a.kept_samples())
-    u = jnp.asarray(fit_map(b, [r.name for r in campaign.runs], n_starts=1, seed=0).u)
+    u = _a_point(b)
     assert float(a.log_density(u)) == pytest.approx(float(b.log_density(u)), rel=1e-12)
     first_rows = dataclasses.replace(campaign, runs=tuple(
         dataclasses.replace(r, conditioning=np.arange(len(r)) < 20) for r in campaign.runs))
