@@ -68,18 +68,18 @@ class Column:
     factor: float
 
 
-def unit_names(quantity: str) -> list[str]:
+def accepted_units(quantity: str) -> list[str]:
     """The units a column of ``quantity`` may be in (angles also in encoder counts)."""
     return list(UNITS[quantity]) + ([COUNT] if quantity == "angle" else [])
 
 
 def _unit_list(quantity: str) -> str:
-    return ", ".join(unit_names(quantity))
+    return ", ".join(accepted_units(quantity))
 
 
 def check_unit(quantity: str, unit: str, where: str) -> None:
     """InputError naming ``where`` when ``unit`` is not a unit of ``quantity``."""
-    if unit not in unit_names(quantity):
+    if unit not in accepted_units(quantity):
         raise InputError(f"{where}: unknown {quantity} unit {unit!r}; expected one of {_unit_list(quantity)}")
 
 
@@ -105,7 +105,7 @@ def _by_suffix(header, canonical: str, quantity: str, where: str,
     prefix = canonical + "_"
     # dict.fromkeys: a name repeated in the header is one candidate (reading it then fails).
     candidates = [name for name in dict.fromkeys(header) if name.startswith(prefix)]
-    known = [name for name in candidates if name[len(prefix) :] in unit_names(quantity)]
+    known = [name for name in candidates if name[len(prefix) :] in accepted_units(quantity)]
     if len(known) > 1:
         raise InputError(
             f"{where}: several columns could be {canonical}: {', '.join(known)}; "
