@@ -87,6 +87,8 @@ def test_bad_units_are_rows_and_the_others_are_done(first_run):
         assert r["stiffness_elastic [Nm/arcmin]"] == doc["metrics"]["stiffness_elastic"]["mean"]
         # SYNTHETIC truth 108 N·m/arcmin
         assert abs(r["stiffness_elastic [Nm/arcmin]"] - 108.0) < 5 * r["stiffness_elastic sd"] + 1.0
+        # loops see every parameter of the reducer: none left at its prior (the column is there, empty)
+        assert r["prior_dominated"] == "" and "prior_dominated_note" not in doc["diagnostics"]
     assert by_unit["unit-a"]["shape"] == by_unit["unit-b"]["shape"]
     for name in GOOD:  # the SYNTHETIC units are far above 80 and far below 200 N·m/arcmin
         r = by_unit[name]

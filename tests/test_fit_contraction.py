@@ -6,7 +6,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from torsionfit.fit._contraction import PRIOR_DOMINATED_SD_RATIO, prior_dominated, prior_dominated_note
+from torsionfit.fit._contraction import (PRIOR_DOMINATED_SD_RATIO, prior_dominated, prior_dominated_named,
+                                         prior_dominated_note)
 
 
 def _problem():
@@ -29,6 +30,7 @@ def test_the_posterior_sd_over_the_priors_names_what_the_data_leave_alone():
     # element of a shape (the data pin a whole, not each element)
     assert note.startswith("the data barely inform friction_torque (level T_f: posterior sd 1.00× the prior's)")
     assert "friction_start" not in note and "slip" not in note
+    assert prior_dominated_named(found, _problem()) == ["friction_torque"]
     assert prior_dominated_note({"friction_start": 1.0, "slip[0]": 1.0}, _problem()) is None
     # just below the bound: informed
     draws[:, 1] *= 0.95 * PRIOR_DOMINATED_SD_RATIO

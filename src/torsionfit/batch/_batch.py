@@ -17,8 +17,8 @@ from ._options import EMCEE, BatchOptions
 from ._unit import ERROR, UnitTask, clear_row, error_row, stored_row, write_row, written_row
 
 TABLE_NAME = "batch"
-COLUMNS = ("unit", "status", "decision", "p_conform", "sampler", "converged", "map_converged", "reason", "shape",
-           "campaign", "label")
+COLUMNS = ("unit", "status", "decision", "p_conform", "sampler", "converged", "map_converged", "reason",
+           "prior_dominated", "shape", "campaign", "label")
 #: units that each killed a process of their own, with no unit ever back from a worker process,
 #: before the batch concludes that its worker processes cannot work at all
 STARTUP_DEATHS = 3

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from .._errors import error_line
 from ..fit import check_fittable
+from ..fit._contraction import prior_dominated_named
 from ..io import load_campaign
 from ..report import finish_fit, prepare_fit, write_fit
 from ._options import BatchOptions
@@ -63,7 +64,9 @@ def finish_unit(task: UnitTask, prepared, map_result, options: BatchOptions, sha
     row = {"unit": task.unit, "status": DONE, "sampler": d["sampler"], "converged": d["converged"],
            "map_converged": d["map_converged"], "reason": d.get("reason", ""), "shape": shape,
            "campaign": str(task.manifest), "label": doc.get("label"),
-           "rmse_max [arcsec]": max(v["value"] for v in doc["rmse"].values())}
+           "rmse_max [arcsec]": max(v["value"] for v in doc["rmse"].values()),
+           # the reducer's parameters this unit's runs leave at their prior (fit/_contraction.py)
+           "prior_dominated": ", ".join(prior_dominated_named(d["prior_dominated"], problem))}
     if options.figures:
         from ..plots import write_fit_figures
 

@@ -38,15 +38,21 @@ def prior_dominated(problem, draws_u) -> dict[str, float]:
     return out
 
 
+def prior_dominated_named(found: dict[str, float], problem) -> list[str]:
+    """The reducer's scalar parameters among ``found`` (:func:`prior_dominated`). The elements of
+    a vector parameter describe a shape (a gap's relay shares, slip elements), and the data pin
+    the whole, not every element (on a measured loop the gap is sharp at 0.03× its prior's sd
+    while most of its 27 relay shares keep their prior): they are listed in fit.json, not named;
+    nor is the state before a run's first sample."""
+    scalar = {p.name for p in problem.physics if p.size == 1}
+    return [n for n in found if n in scalar and not n.endswith(_NUISANCE_SUFFIX)]
+
+
 def prior_dominated_note(found: dict[str, float], problem) -> str | None:
-    """One line naming the reducer's scalar parameters the data leave at their prior, None when
-    none. The elements of a vector parameter describe a shape (a gap's relay shares, slip
-    elements), and the data pin the whole, not every element (on a measured loop the gap is
-    sharp at 0.03× its prior's sd while most of its 27 relay shares keep their prior): they are
-    listed in fit.json, not named here; nor is the state before a run's first sample."""
-    described = {p.name: p.description for p in problem.physics if p.size == 1}
-    named = [(n, r) for n, r in found.items() if n in described and not n.endswith(_NUISANCE_SUFFIX)]
+    """One line naming the parameters of :func:`prior_dominated_named`, None when none."""
+    described = {p.name: p.description for p in problem.physics}
+    named = prior_dominated_named(found, problem)
     if not named:
         return None
-    parts = ", ".join(f"{n} ({described[n]}: posterior sd {r:.2f}× the prior's)" for n, r in named)
+    parts = ", ".join(f"{n} ({described[n]}: posterior sd {found[n]:.2f}× the prior's)" for n in named)
     return f"the data barely inform {parts}: their values, and the metrics that read them, are the prior's"
