@@ -105,7 +105,7 @@ def summary_text(doc: dict) -> str:
 #: fit.json's notes the final metrics carry, and the summary's label of each
 FINAL_NOTES = (("metrics_off_data_note", "off the data"), ("friction_hook_note", "physics"),
                ("gap_segment_note", "physics"), ("relay_gap_note", "physics"), ("noise_note", "noise"),
-               ("laplace_note", "laplace"))
+               ("laplace_note", "laplace"), ("prior_dominated_note", "prior"))
 
 
 # float64 here too: write_diagnosis (or a script) calls this after diagnose() has returned,
