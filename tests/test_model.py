@@ -335,6 +335,19 @@ def test_te_grows_with_speed_when_viscous_friction_is_on():
     assert flat[0] == pytest.approx(flat[1], rel=1e-12)
 
 
+@pytest.mark.parametrize("direction", [1, -1])
+def test_a_te_run_timed_by_its_angle_reads_a_wrapping_angle_as_the_turns_travelled(direction):
+    """Three output turns logged modulo one turn (a single-turn encoder), no time column: the
+    run is timed by the angle travelled, and each wrap is no turn of its own (it added one
+    turn's time per wrap: 6 turns' time for 3 turns)."""
+    phi = direction * (0.1 + np.linspace(0.0, 6 * np.pi, 601))
+    wrapped = np.mod(phi, 2 * np.pi)
+    assert np.sum(np.abs(np.diff(wrapped)) > np.pi) == 3
+    plain, logged = m.te_input(phi, RATED, 2.0, direction), m.te_input(wrapped, RATED, 2.0, direction)
+    np.testing.assert_allclose(np.asarray(logged.time_s), np.asarray(plain.time_s), rtol=1e-12)
+    assert float(plain.time_s[-1]) == pytest.approx(90.0)  # 3 turns at 2 rpm
+
+
 def test_te_direction_flips_sign_of_twist():
     model = m.CampaignModel(run_kinds=("transmission_error",) * 2)
     p = base_params(te_offset=jnp.zeros(1))

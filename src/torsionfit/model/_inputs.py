@@ -45,7 +45,8 @@ def te_input(output_angle_rad, torque_Nm, speed_rpm, direction, time_s=None, zer
     phi = np.asarray(output_angle_rad, float)
     if time_s is None:  # constant speed: time follows from the angle travelled (either direction)
         speed = max(speed_rpm * 2 * np.pi / 60, 1e-12)
-        time_s = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(phi)))]) / speed
+        # an output angle logged modulo a turn jumps back by one at each wrap: not a turn travelled
+        time_s = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(np.unwrap(phi))))]) / speed
     return TEInput(
         jnp.asarray(phi),
         jnp.asarray(time_s, float),
