@@ -83,6 +83,19 @@ def test_counts_read_with_a_wrong_resolution_ask_for_it(write_files):
     assert not any("if the column held" in str(w.message) for w in record)
 
 
+def test_counts_that_step_far_coarser_than_the_resolution_ask_for_it(write_files):
+    """A 2^16-count encoder's counts declared at a 2^22-count resolution (64× finer): every change
+    is a multiple of 64 of the declared counts, and the warning asks about the resolution."""
+    counts = np.round(np.linspace(-300.0, 300.0, 401)) * 64.0
+    text = csv_text(("time_s", "torque_Nm", "angle_count"), [np.linspace(0, 8, 401), counts / 192.0, counts])
+    reducer = "[reducer]\nrated_torque_Nm = 100.0\n" + _instrument(encoder_resolution_arcsec=1296000.0 / 2**22)
+    path = write_files({"campaign.toml": manifest(hyst_run(), head="", reducer=reducer), "h.csv": text})
+    with pytest.warns(UserWarning, match=r"64× the \[instrument\] encoder_resolution_arcsec") as record:
+        load_campaign(path)
+    (step,) = [str(w.message) for w in record if "moves in steps" in str(w.message)]
+    assert "is the resolution (the angle of one count) right?" in step and "angle unit" not in step
+
+
 @pytest.mark.skipif(not SHARED_DATA.is_dir(), reason="measured data ../shared/data is absent")
 def test_a_measured_loop_logged_in_counts_of_a_wrapping_encoder_reads_as_in_revolutions(tmp_path):
     """REAL split preload3-pos1, POSITION (rev, 2^-16 steps) written as a single-turn absolute

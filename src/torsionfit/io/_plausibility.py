@@ -159,8 +159,10 @@ def quantisation_step(values: np.ndarray) -> float | None:
     return q
 
 
-def check_encoder_step(angle_rad, resolution_arcsec: float | None, where: str, column: str) -> None:
-    """Warn when the angle moves in steps far from the declared encoder resolution."""
+def check_encoder_step(angle_rad, resolution_arcsec: float | None, where: str, column: str,
+                       unit: str | None = None) -> None:
+    """Warn when the angle moves in steps far from the declared encoder resolution (``unit``:
+    the column's; a column in encoder counts has no unit to slip, only a resolution)."""
     if resolution_arcsec is None:
         return
     q = quantisation_step(angle_rad)
@@ -177,9 +179,10 @@ def check_encoder_step(angle_rad, resolution_arcsec: float | None, where: str, c
         return
     if 1.0 / STEP_RATIO_LIMIT <= ratio <= STEP_RATIO_LIMIT:
         return
+    what = ("the resolution (the angle of one count) right" if unit is not None and unit not in units.ANGLE_UNITS
+            else "the column's angle unit (or the resolution) right")
     warn(f"{where}: column {column!r} moves in steps of {q / ARCSEC:.4g} arcsec, {ratio:.4g}× "
-         f"the [instrument] encoder_resolution_arcsec = {resolution_arcsec:g}; is the column's "
-         f"angle unit (or the resolution) right?")
+         f"the [instrument] encoder_resolution_arcsec = {resolution_arcsec:g}; is {what}?")
 
 
 #: how close the encoder step, read in another angle unit, must come to the declared resolution

@@ -158,7 +158,7 @@ def _hysteresis(spec, reducer, table, si, time, found, where, notes) -> Hysteres
     # after the errors: a warning is for data that read cleanly
     check_hysteresis(torque, angle, reducer.rated_torque_Nm, where, found["angle"].name,
                      found["angle"].unit, found["torque"].name, reducer.ratio)
-    check_encoder_step(angle, spec.encoder_resolution_arcsec, where, found["angle"].name)
+    check_encoder_step(angle, spec.encoder_resolution_arcsec, where, found["angle"].name, found["angle"].unit)
     conditioning = None
     if spec.condition:
         conditioning = rows_passing(table, spec.condition, where, "[runs.condition]")
