@@ -397,9 +397,15 @@ def test_te_only_friction_needs_both_directions():
     rng = np.random.default_rng(0)
     found = [prior_dominated(r.problem, rng.multivariate_normal(np.asarray(r.u), np.asarray(r.cov), size=4000))
              for r in (one, both)]
-    print(f"[identifiability] prior-dominated: one direction {found[0]}, both {found[1]}")
+    # the forward runs each re-zeroed (a zero group of its own): the zeros take the twist whole
+    rezeroed = dataclasses.replace(forward, runs=tuple(dataclasses.replace(r, zero_group=r.name) for r in forward.runs))
+    alone = fit_campaign(rezeroed, NoiseOptions(ar1=False), seed=7, model=_gap_free_model(rezeroed))
+    found.append(prior_dominated(alone.problem, rng.multivariate_normal(np.asarray(alone.u), np.asarray(alone.cov),
+                                                                        size=4000)))
+    print(f"[identifiability] prior-dominated: one direction {found[0]}, both {found[1]}, each run re-zeroed {found[2]}")
     assert "friction_torque" in found[0] and "stiffness" not in found[0], found[0]
     assert "friction_torque" not in found[1] and "stiffness" not in found[1], found[1]
+    assert "stiffness" in found[2] and "friction_torque" in found[2], found[2]
     assert "friction_torque" in prior_dominated_note(found[0], one.problem)
 
 
