@@ -31,16 +31,16 @@ def check_te_zero_groups(runs, where: str) -> None:
     """Warn when every TE zero group holds runs at one load in one direction (and one speed and
     temperature; see the module text); nothing when a group holds two states or no TE run is
     given."""
-    te_runs = [r for r in runs if isinstance(r, TransmissionErrorRun)]
-    groups: dict = {}
-    for run in te_runs:
-        groups.setdefault(run.zero_group, set()).add(_state(run))
-    if not te_runs or any(len(states) > 1 for states in groups.values()):
-        return
     if any(isinstance(r, HysteresisRun) for r in runs):
         return  # the loops carry the twist; the TE runs give their ripple (a common layout)
-    shown = "; ".join(f"{'(shared)' if g is None else g}: {_shown(next(r for r in te_runs if r.zero_group == g))}"
-                      for g in list(groups)[:4]) + (f"; ... ({len(groups)} groups)" if len(groups) > 4 else "")
+    groups: dict = {}  # zero group → its runs
+    for run in runs:
+        if isinstance(run, TransmissionErrorRun):
+            groups.setdefault(run.zero_group, []).append(run)
+    if not groups or any(len({_state(r) for r in members}) > 1 for members in groups.values()):
+        return
+    shown = "; ".join(f"{'(shared)' if g is None else g}: {_shown(members[0])}"
+                      for g, members in list(groups.items())[:4]) + (f"; ... ({len(groups)} groups)" if len(groups) > 4 else "")
     warn(f"{where}: every TE zero group holds runs at one load in one direction ({shown}): each group's TE "
          f"zero absorbs its twist under load, so the TE runs say nothing of the twist and te_convention goes "
          f"unchecked; with no hysteresis run the fit's stiffness, friction and lost motion are their priors. "
