@@ -39,8 +39,9 @@ def check_te_zero_groups(runs, where: str) -> None:
             groups.setdefault(run.zero_group, []).append(run)
     if not groups or any(len({_state(r) for r in members}) > 1 for members in groups.values()):
         return
-    shown = "; ".join(f"{'(shared)' if g is None else g}: {_shown(members[0])}"
-                      for g, members in list(groups.items())[:4]) + (f"; ... ({len(groups)} groups)" if len(groups) > 4 else "")
+    shown = "; ".join(f"{'(shared)' if g is None else g}: {_shown(members[0])}" for g, members in list(groups.items())[:4])
+    if len(groups) > 4:
+        shown += f"; ... ({len(groups)} groups)"
     warn(f"{where}: every TE zero group holds runs at one load in one direction ({shown}): each group's TE "
          f"zero absorbs its twist under load, so the TE runs say nothing of the twist and te_convention goes "
          f"unchecked; with no hysteresis run the fit's stiffness, friction and lost motion are their priors. "
