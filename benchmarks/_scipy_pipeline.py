@@ -2,11 +2,11 @@
 
 Same model, same data, same log-density, same sampler as ``fit_campaign`` with the default
 options on a campaign of hysteresis runs (base model: linear compliance, Dahl friction with a
-free initial state, smooth backlash, per-run angle offset; latent torque knots; errors-in-
+free initial state, smooth backlash, per-run angle offset; latent torque lines per ramp; errors-in-
 variables variance; AR(1) noise), written without JAX:
 
 - **Data preparation** (:func:`build`): torsionfit's own NumPy preprocessing — the denoised
-  drive torque and its variance (``denoise_torque``), the latent-torque knots and hat basis,
+  drive torque and its variance (``denoise_torque``), the latent torque lines per ramp (``ramp_line_basis``),
   the priors (``build_priors``). Nothing here is JAX, so both pipelines start from the same
   numbers.
 - **Model** (:meth:`NumpyProblem.predict`): vectorised over walkers. Arrays are laid out
@@ -44,10 +44,10 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from torsionfit.fit._denoise import denoise_torque
-from torsionfit.fit._torque_error import angle_variance_from_torque_error
+from torsionfit.fit._torque_error import angle_variance_from_torque_error, ramp_line_basis
 from torsionfit.fit._map import same_optimum
 from torsionfit.fit._prior import build_priors
-from torsionfit.fit._problem import AR1_MIN_SAMPLES, NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD, _hat_basis, _knot_indices
+from torsionfit.fit._problem import AR1_MIN_SAMPLES, NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD
 from torsionfit.io import HysteresisRun
 from torsionfit.model import Parameter
 from torsionfit.sample._emcee import (_burn_thin, _check, _regularised_cov, _retire_if_rejected, _tau,
@@ -129,14 +129,14 @@ def _angle(mesh, k, gap, t_g):
 @dataclass(eq=False)
 class NumpyProblem:
     """One hysteresis run, base model with a free initial friction state. The layout of u is
-    torsionfit's: 5 physics, friction_start (atanh z0), the latent torque knots, log s, then
+    torsionfit's: 5 physics, friction_start (atanh z0), the latent torque lines, log s, then
     logit ρ when AR(1) is on."""
 
     time_s: np.ndarray
     tau: np.ndarray  # denoised drive torque, N·m (N,)
     eiv_var: np.ndarray  # the angle variance its error causes per sample, rad² (N,), torsionfit's
     y: np.ndarray  # measured angle, rad (N,)
-    basis: np.ndarray  # (N, K) hat functions of the latent torque correction
+    basis: np.ndarray  # (N, 2·ramps) level and tilt columns of the latent torque correction
     floor: float  # encoder floor, rad
     ar1: bool
     prior_mean: np.ndarray  # (n_nonlinear,)
@@ -147,12 +147,12 @@ class NumpyProblem:
     n_model = len(PHYSICS) + 1  # + friction_start
 
     @property
-    def n_knots(self) -> int:
+    def n_torque_lines(self) -> int:
         return int(self.basis.shape[1])
 
     @property
     def n_nonlinear(self) -> int:
-        return self.n_model + self.n_knots
+        return self.n_model + self.n_torque_lines
 
     @property
     def dim(self) -> int:
@@ -160,7 +160,8 @@ class NumpyProblem:
 
     def names(self) -> list[str]:
         out = [p.name for p in PHYSICS] + ["friction_start"]
-        out += [f"torque_knot[{self.run_name}][{k}]" for k in range(self.n_knots)]
+        out += [f"torque_line[{self.run_name}][{k // 2}].{'tilt' if k % 2 else 'level'}"
+                for k in range(self.n_torque_lines)]
         out += [f"noise[{self.run_name}]"] + ([f"ar1[{self.run_name}]"] if self.ar1 else [])
         return out
 
@@ -183,7 +184,7 @@ class NumpyProblem:
         u = np.atleast_2d(np.asarray(u, float))
         k, t_f, t_d, gap, t_g = (np.exp(u[:, j]) for j in range(len(PHYSICS)))
         z0 = np.tanh(u[:, len(PHYSICS)])
-        tau = self.tau[:, None] + self.basis @ u[:, self.n_model:self.n_nonlinear].T if self.n_knots \
+        tau = self.tau[:, None] + self.basis @ u[:, self.n_model:self.n_nonlinear].T if self.n_torque_lines \
             else np.repeat(self.tau[:, None], len(u), axis=1)
         d_tau = np.diff(tau, axis=0)
         z = _dahl_by_runs(d_tau, t_d, z0, np.empty_like(tau)) if recurrence == "runs" else None
@@ -200,7 +201,7 @@ class NumpyProblem:
         with np.errstate(over="ignore"):
             k, t_f, t_d, gap, t_g = np.exp(u[:len(PHYSICS)]).tolist()
         z0 = math.tanh(u[len(PHYSICS)])
-        tau = self.tau + self.basis @ u[self.n_model:self.n_nonlinear] if self.n_knots else self.tau
+        tau = self.tau + self.basis @ u[self.n_model:self.n_nonlinear] if self.n_torque_lines else self.tau
         d_tau = np.diff(tau)
         a = np.exp(-np.abs(d_tau) / t_d)
         b = np.sign(d_tau) * (1.0 - a)
@@ -310,16 +311,15 @@ def build(campaign, *, latent_torque: bool = True, ar1: bool | None = None,
     if len(runs) != 1 or not isinstance(runs[0], HysteresisRun):
         raise ValueError("the NumPy pipeline handles a campaign of exactly one hysteresis run")
     run = runs[0]
-    tau, var = denoise_torque(run.torque_Nm, denoise_fraction, return_variance=True)
+    tau, var, lines = denoise_torque(run.torque_Nm, denoise_fraction, return_lines=True)
     params = PHYSICS + (Parameter("friction_start", "signed_unit", "1", "z at the start"),)
     priors = build_priors(params, campaign)
     prior_mean = [priors[p.name][0] for p in params]
     prior_sd = [priors[p.name][1] for p in params]
     if latent_torque:
-        knots = _knot_indices(run.torque_Nm)
-        basis = _hat_basis(len(run), knots)
-        prior_mean += [0.0] * len(knots)
-        prior_sd += list(np.sqrt(np.maximum(var[knots], 1e-12)))
+        basis, line_sd, var = ramp_line_basis(lines, var)
+        prior_mean += [0.0] * basis.shape[1]
+        prior_sd += list(np.maximum(line_sd, 1e-6))
     else:
         basis = np.zeros((len(run), 0))
     y = np.asarray(run.angle_rad, float)

@@ -265,7 +265,7 @@ def markdown(rows: list[dict], particles: int | str, optima_mixture: bool = Fals
                               f"{d['name']} {d['shift_sd']:+.1f} sd, ×{d['width_ratio']:.1f}" for d in r["departure"]) + "."]
     not_conv = [r for r in rows if not r["smc"]["converged"]]
     for r in not_conv:
-        # a parameter's index (torque_knot[initial-pos6][5]) would read as a Markdown link
+        # a parameter's index (torque_line[initial-pos6][5].level) would read as a Markdown link
         reason = r["smc"]["reason"].replace("[", "\\[")
         lines += ["", f"{r['unit']}: {reason}."]
     return "\n".join(lines)

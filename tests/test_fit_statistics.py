@@ -227,20 +227,11 @@ def test_ninety_percent_intervals_are_calibrated():
 STEP_ONLY_SEEDS = range(500, 520)
 
 
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "known: with no angle noise above the 1″ encoder steps the torque noise's share of the angle "
-    "error dominates, and it is counted sample by sample although the denoised torque's error is "
-    "correlated over the smoother's window: the friction level's Laplace sd comes out ~2.5× too small"))
-def test_friction_intervals_hold_when_the_angle_noise_is_below_the_encoder_step():
-    """The white-noise bench without its extra angle noise: the encoder's 1″ steps and the
-    1.5 N·m torque noise are all the noise there is. The friction level's 95 % intervals should
-    cover the truth on at least 17 of 20 campaigns (a calibrated method fails that 1.6 % of the
-    time). Measured: friction 10 of 20, stiffness 16 of 20 (the same mechanism as friction's
-    ≈ 85 % at 90 % in the calibration test above, where 1″ of angle noise dilutes it). Counting the torque error with its long-run variance (the raw
-    noise's, as if each sample carried the whole window's error) brings friction's z-scores to
-    sd 0.9 but widens the stiffness interval about sixfold, so neither is the answer: the
-    likelihood needs the smoother's correlation itself."""
+@pytest.fixture(scope="module")
+def step_only_hits():
+    """The white-noise bench without its extra angle noise (the encoder's 1″ steps and the
+    1.5 N·m torque noise are all the noise there is), 20 campaigns of one reducer: whether each
+    physical parameter's 95 % interval covers the truth, (20, 5)."""
     bench = load_bench(WHITE)
     bench = dataclasses.replace(bench, noise=dataclasses.replace(bench.noise, angle_sd_arcsec=0.0))
     hits = []
@@ -248,9 +239,33 @@ def test_friction_intervals_hold_when_the_angle_noise_is_below_the_encoder_step(
         sim = simulate(bench, seed=seed)
         hits.append(covered(fit_campaign(sim.campaign, seed=seed), sim.truth, 0.95))
     hits = np.array(hits)
-    message = f"95 % intervals, encoder steps and torque noise only: {coverage_table(hits)}"
-    print("\n[encoder step] " + message)
-    assert hits[:, PHYSICAL.index("friction_torque")].sum() >= 17, message
+    print(f"\n[encoder step] 95 % intervals, encoder steps and torque noise only: {coverage_table(hits)}")
+    return hits
+
+
+@pytest.mark.slow
+def test_friction_intervals_hold_when_the_angle_noise_is_below_the_encoder_step(step_only_hits):
+    """The friction level's 95 % intervals cover the truth on at least 17 of 20 campaigns (a
+    calibrated method fails that 1.6 % of the time). Here the denoised torque's error is most of
+    the angle's: it is one line per ramp (the smoother's error), and the fit carries it as a
+    latent line per ramp. Counted sample by sample instead (the per-sample variance it was
+    before), friction covered 10 of 20, its z-scores' sd 2.5; now 18 of 20."""
+    assert step_only_hits[:, PHYSICAL.index("friction_torque")].sum() >= 17, coverage_table(step_only_hits)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "known: with the 1″ encoder steps as the only angle noise, the gap's closing torque is read off "
+    "a few samples per crossing (4 Hz at 20 N·m/s: 5 N·m apart across a 5 N·m transition) whose "
+    "quantisation errors the likelihood counts as independent noise of sd step/√12; one reducer "
+    "measured again and again repeats one pattern of them, and gap_torque comes out 2.5 % high in "
+    "all 20 campaigns at an sd of 1 % (with 0.01″ steps the bias is gone)"))
+def test_gap_closing_torque_intervals_hold_when_the_angle_noise_is_below_the_encoder_step(step_only_hits):
+    """gap_torque's 95 % intervals should cover the truth on at least 17 of 20. Measured: 0 of 20
+    (before the torque error was carried per ramp, its per-sample variance widened the interval
+    over the bias: 20 of 20). With the truth varied per campaign the quantisation falls
+    differently each time: 31 of 40 covered (friction 35, stiffness 38)."""
+    assert step_only_hits[:, PHYSICAL.index("gap_torque")].sum() >= 17, coverage_table(step_only_hits)
 
 
 # --- 3. correlated noise -----------------------------------------------------------------------
@@ -468,16 +483,18 @@ def test_non_finite_or_ragged_hand_built_run_is_an_input_error(white_campaign, f
 
 def test_torque_error_variance_can_be_switched_off():
     """NoiseOptions.torque_error_variance=False: each hysteresis sample's innovation sd is the
-    angle noise alone; on (the default) the denoised torque's error adds where the loop is steep."""
+    angle noise alone; on (the default) the denoised torque's error adds where the loop is steep
+    — all of it without the latent torque lines, and with them (the default) only what the
+    ramps' lines leave: on this bench's straight ramps, nothing."""
     campaign = simulate(load_bench(WHITE), seed=1).campaign
     model = model_with_effects([r.kind for r in campaign.runs], {}, campaign.reducer.rated_torque_Nm,
                                free_friction_start=True)
     runs = [i for i, r in enumerate(campaign.runs) if r.kind == "hysteresis"]
-    for flag in (True, False):
-        problem = build_problem(campaign, model, NoiseOptions(torque_error_variance=flag))
+    for flag, latent, expected in ((True, False, "widened"), (False, False, "none"), (True, True, "none")):
+        problem = build_problem(campaign, model, NoiseOptions(torque_error_variance=flag), latent_torque=latent)
         # the noise above the encoder floor at ~0: σ is the floor, the torque's error shows
         u = jnp.concatenate([problem.prior_mean, jnp.full(problem.n_runs, -40.0), jnp.zeros(problem.n_ar1)])
         scales = problem.sample_scales(u)
         sigma = problem.sample_sigma(u)
         widened = max(float(jnp.max(scales[r] / sigma[r])) for r in runs)
-        assert (widened > 2.0) if flag else (widened == 1.0), (flag, widened)
+        assert (widened > 2.0) if expected == "widened" else (widened < 1.0 + 1e-6), (flag, latent, widened)

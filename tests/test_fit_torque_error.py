@@ -77,15 +77,58 @@ def _play_then_stiffness_ramps(seed: int = 0):
 def test_play_ramps_of_a_large_file_are_ramps_of_their_own():
     """The fit's ramps split at the ±4 N·m play ramps' reversals: the denoiser keeps their
     corners (with the metrics' 10 % threshold it smoothed across them and rounded each peak by
-    ~0.3 N·m on the measured files) and the latent torque knots sit at them."""
+    ~0.3 N·m on the measured files) and each play ramp has a latent torque line of its own."""
     from torsionfit.fit._denoise import denoise_torque
-    from torsionfit.fit._problem import _knot_indices
 
     tau = _play_then_stiffness_ramps()
-    smooth = denoise_torque(tau)
+    smooth, _, lines = denoise_torque(tau, return_lines=True)
     play = slice(30, 30 + 5 * 118)
     peaks = np.sort(np.abs(smooth[play]))[-10:]
     assert np.all(peaks > 3.85), peaks  # every play-ramp corner kept (true peak 4.0)
-    knots = _knot_indices(tau)
-    assert np.sum((knots > 25) & (knots < 30 + 5 * 118)) >= 10, knots
+    assert np.unique(lines.ramp[play]).size >= 10, np.unique(lines.ramp[play])
 
+
+
+def test_on_straight_ramps_the_ramp_lines_are_the_whole_denoised_error():
+    """A triangle program with white torque noise: each ramp's smoother is (nearly always: the
+    window is chosen by cross-validation) its least-squares line, so the denoised torque's error
+    is one line per ramp. Over 400 noise draws its level and tilt scatter as the lines' prior sd
+    say, and nothing is left per sample."""
+    from torsionfit.fit._denoise import denoise_torque
+    from torsionfit.fit._torque_error import ramp_line_basis
+
+    true = _triangle(120, 10.0)
+    noise_sd = 0.3
+    rng = np.random.default_rng(4)
+    coefs, left, sds, whole = [], [], [], 0
+    for _ in range(400):
+        tau = true + rng.normal(0.0, noise_sd, true.size)
+        smooth, var, lines = denoise_torque(tau, return_lines=True)
+        basis, sd, rest = ramp_line_basis(lines, var)
+        error = smooth - true
+        c, *_ = np.linalg.lstsq(basis, error, rcond=None)
+        coefs.append(c)
+        left.append(np.std(error - basis @ c) / np.std(error))
+        sds.append(sd)
+        whole += bool(np.all(rest < 1e-9 * var.max()))
+    assert whole >= 0.9 * len(coefs), whole
+    assert basis.shape[1] == 6  # three ramps, a level and a tilt each
+    ratio = np.std(coefs, axis=0) / np.mean(sds, axis=0)
+    assert np.all((ratio > 0.85) & (ratio < 1.15)), ratio
+    assert np.mean(np.array(left) < 0.05) >= 0.9, np.quantile(left, [0.5, 0.9])
+
+
+def test_a_curved_ramps_lines_and_rest_add_up_to_its_variance():
+    """A curved ramp (a narrower smoothing window): the lines take the ramp-long part of each
+    sample's variance, the rest stays per sample, and the two add up to the smoother's."""
+    from torsionfit.fit._denoise import denoise_torque
+    from torsionfit.fit._torque_error import ramp_line_basis
+
+    x = np.linspace(0.0, 1.0, 400)
+    tau = np.concatenate([10.0 * x**3, 10.0 * x[::-1][1:] ** 3])
+    tau = tau + np.random.default_rng(1).normal(0.0, 0.05, tau.size)
+    _, var, lines = denoise_torque(tau, return_lines=True)
+    basis, sd, rest = ramp_line_basis(lines, var)
+    line_var = (basis**2) @ (sd**2)
+    assert rest.max() > 0.0
+    np.testing.assert_allclose(np.maximum(line_var, var), line_var + rest, rtol=1e-9, atol=1e-15)

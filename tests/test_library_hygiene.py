@@ -61,7 +61,7 @@ _WORKLOAD = """
         with torsionfit.float64():  # FitProblem's methods are building blocks: the caller's precision
             truth = {"friction_start": np.zeros(model.n_hysteresis), **sim.truth}
             noise = np.concatenate([np.full(problem.n_runs, np.log(1e-6)), np.zeros(problem.n_ar1)])
-            u = np.concatenate([problem.physics_u(truth), np.zeros(problem.n_knots), noise])
+            u = np.concatenate([problem.physics_u(truth), np.zeros(problem.n_torque_lines), noise])
             sd = np.concatenate([0.01 * np.asarray(problem.prior_sd), np.full(noise.size, 0.1)])
         names = problem.names([r.name for r in sim.campaign.runs])
         return problem, SimpleNamespace(u=u, cov=np.diag(sd**2), names=names)

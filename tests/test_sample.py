@@ -295,7 +295,7 @@ def small(tmp_path_factory):
     problem = build_problem(sim.campaign, model)
     truth = {k: np.asarray(v) for k, v in sim.truth.items()}
     truth.setdefault("friction_start", np.zeros(model.n_hysteresis))
-    u = np.concatenate([problem.physics_u(truth), np.zeros(problem.n_knots),
+    u = np.concatenate([problem.physics_u(truth), np.zeros(problem.n_torque_lines),
                         np.full(problem.n_runs, np.log(1e-6)), np.zeros(problem.n_ar1)])
     sd = np.concatenate([0.01 * np.asarray(problem.prior_sd), np.full(problem.n_runs + problem.n_ar1, 0.1)])
     start = SimpleNamespace(u=u, cov=np.diag(sd**2), names=problem.names(runs))
@@ -383,11 +383,11 @@ def test_datatree_layout(small, short_tree):
     assert list(post["hysteresis_run"].values) == ["hyst-5"]
     assert post["noise_sigma"].dims == ("chain", "draw", "run") and post["noise_sigma"].attrs["units"] == "rad"
     assert post["ar1_rho"].dims == ("chain", "draw", "ar1_run")
-    assert post["torque_knot_correction"].sizes["torque_knot"] == problem.n_knots
+    assert post["torque_line_correction"].sizes["torque_line"] == problem.n_torque_lines
     assert {post[k].attrs["role"] for k in post.data_vars} == {"model", "noise", "latent"}
     # posterior values are the draws mapped to SI (stiffness = exp(u[0]))
     np.testing.assert_allclose(post["stiffness"].values, np.exp(res.chain[..., 0].T), rtol=1e-12)
-    np.testing.assert_allclose(post["torque_knot_correction"].values,
+    np.testing.assert_allclose(post["torque_line_correction"].values,
                                np.transpose(res.chain[..., problem.n_model:problem.n_nonlinear], (1, 0, 2)))
 
     # every sample of every run on one observation dim, the same (chain, draw) grid as the posterior

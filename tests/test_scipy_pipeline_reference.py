@@ -45,7 +45,7 @@ def _points(problem, truth, rng, n=6):
     """Points around the truth (where the posterior is) and around the prior centre (far out)."""
     u_truth = np.concatenate([
         np.asarray(problem.physics_u({**{k: np.asarray(v) for k, v in truth.items()}, "friction_start": 0.1})),
-        np.zeros(problem.n_knots), np.asarray(problem.noise_prior_mean) - 1.0, np.zeros(problem.n_ar1),
+        np.zeros(problem.n_torque_lines), np.asarray(problem.noise_prior_mean) - 1.0, np.zeros(problem.n_ar1),
     ])
     u_prior = np.concatenate([np.asarray(problem.prior_mean), np.asarray(problem.noise_prior_mean),
                               np.zeros(problem.n_ar1)])

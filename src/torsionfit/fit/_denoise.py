@@ -11,6 +11,8 @@ error goes straight into the angle and makes intervals overconfident (tested).
 Smoothing is by sample index, not time, because benches quantise time (duplicate stamps).
 """
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .._segments import fit_ramps
@@ -79,9 +81,23 @@ def _line(idx, y):
 TRIM = 5
 
 
-def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_variance: bool = False):
+class RampLines(NamedTuple):
+    """Which ramp's smoother each denoised sample is read from, and that ramp's noise: the
+    low-frequency part of the denoised torque's error is one line per ramp (its level and tilt
+    over the ramp's core), correlated along the whole ramp, not sample by sample."""
+
+    ramp: np.ndarray  # (n,) index of the ramp whose smoother (or end line) gives the sample
+    centre: np.ndarray  # (K,) mean sample index of each ramp's core
+    count: np.ndarray  # (K,) samples in each ramp's core
+    sxx: np.ndarray  # (K,) Σ(i − centre)² over the core
+    noise_var_Nm2: np.ndarray  # (K,) the raw torque noise variance of each ramp, N·m²
+
+
+def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_variance: bool = False,
+                   return_lines: bool = False):
     """Torque smoothed within each monotone segment, N·m (and, with ``return_variance``, the
-    variance of each smoothed sample, N·m², from the ramp's noise and the smoother's leverage).
+    variance of each smoothed sample, N·m², from the ramp's noise and the smoother's leverage;
+    with ``return_lines`` also the :class:`RampLines` each sample is read from).
 
     Each ramp, less ``TRIM`` samples next to each turning point, is smoothed by a local-linear
     fit whose half-width is chosen by generalised cross-validation (or fixed at
@@ -92,10 +108,12 @@ def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_vari
     tau = np.asarray(torque_Nm, float)
     n = tau.size
     if n < 7:
-        return (tau.copy(), np.zeros(n)) if return_variance else tau.copy()
+        lines = RampLines(np.zeros(n, int), *(np.zeros(0) for _ in range(4)))
+        return _returned(tau.copy(), np.zeros(n), lines, return_variance, return_lines)
     segments = fit_ramps(tau)
     out = tau.copy()
     var = np.zeros(n)
+    ramp = np.zeros(n, int)
     ends = []  # per segment: (core start, core stop, width, first line, last line)
     for k, (start, stop, _) in enumerate(segments):
         lo = start + (TRIM if k > 0 else 0)
@@ -109,6 +127,7 @@ def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_vari
             w = max(3, int(segment_fraction * core.size))
         fit, leverage = local_linear(core, w, return_leverage=True)
         out[lo:hi + 1] = fit
+        ramp[lo:hi + 1] = k
         noise_var = np.mean((core - fit) ** 2) / max(1.0 - np.mean(leverage), 1e-3)
         var[lo:hi + 1] = noise_var * leverage
         m = min(core.size, 2 * w + 1)
@@ -124,6 +143,16 @@ def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_vari
         use_left = (left <= right) if direction > 0 else (left >= right)
         out[i] = np.where(use_left, left, right)
         var[i] = np.where(use_left, _line_variance(i, ia_idx, var_a), _line_variance(i, ib_idx, var_b))
+        ramp[i] = np.where(use_left, k, k + 1)
+    cores = [np.arange(e[0], e[1] + 1) for e in ends]
+    lines = RampLines(ramp, np.array([c.mean() for c in cores]), np.array([c.size for c in cores], float),
+                      np.array([np.sum((c - c.mean()) ** 2) for c in cores]), np.array([e[5] for e in ends]))
+    return _returned(out, var, lines, return_variance, return_lines)
+
+
+def _returned(out, var, lines, return_variance, return_lines):
+    if return_lines:
+        return out, var, lines
     return (out, var) if return_variance else out
 
 

@@ -7,16 +7,17 @@ leaves, the structure (model, parameter layout, AR(1) mask) is static. Functions
 model reuses the compiled code.
 
 Layout of the unconstrained vector u — the *non-linear block*: the physics (one entry per
-element, in ``model.parameters()`` order), then the latent torque knots of each hysteresis
-run; then log s_r per run (noise above the encoder floor), then logit(ρ_r/ρ_max) for each run
+element, in ``model.parameters()`` order), then the latent torque lines of each hysteresis
+run (a level and a tilt per ramp); then log s_r per run (noise above the encoder floor), then logit(ρ_r/ρ_max) for each run
 with AR(1) noise (ρ_max = :data:`RHO_MAX`).
 
-The true drive torque is latent: the model is driven by the denoised measured torque plus a
-continuous piecewise-linear correction with knots at the turning points and the ends of each
-run, each knot with a normal prior whose sd is the smoother's uncertainty there. A ramp's
-fitted line is never exact, and where the loop is steep (lost motion closing near zero
-torque, the friction transition after a reversal) its small, ramp-long error would
-otherwise be read as physics with false confidence. The linear parameters (per-run offsets, drift,
+The true drive torque is latent: the model is driven by the denoised measured torque plus, on
+each ramp, a correction line (its level and its tilt across the ramp), each with a normal prior
+whose sd is that of the smoother's error line (fit/_torque_error.py: ``ramp_line_basis``). A
+ramp's smoothed torque is never exact, and its error is one line along the whole ramp, not an
+error per sample: where the loop is steep (lost motion closing near zero torque, the friction
+transition after a reversal) that ramp-long error, counted sample by sample, would be read as
+physics with false confidence. The linear parameters (per-run offsets, drift,
 kinematic harmonics) are not in u: for any u they are solved by weighted least squares
 (variable projection) and, in the log-density, marginalised analytically under a flat
 prior, so the sampler sees only the non-linear physics.
@@ -40,7 +41,7 @@ from ..metrics._hysteresis import small_cycle_rows
 from ._denoise import denoise_torque
 from ._noise_classes import conditioning_keep, ramp_amplitudes
 from ._prior import build_priors
-from ._torque_error import angle_variance_from_torque_error
+from ._torque_error import angle_variance_from_torque_error, ramp_line_basis
 
 AR1_MIN_SAMPLES = 100  # the AR(1) default is on for runs at least this dense
 RHO_PRIOR_SD = 1.5  # logit-normal(0, 1.5) prior on each ρ_r / ρ_max
@@ -96,7 +97,7 @@ class NoiseOptions:
     first_excursion_conditioning: bool = False
     # True: the denoised drive torque's error enters each hysteresis sample's variance as the
     # angle the *measured* loop branch moves across ±sd τ̂ (errors in variables, from the data:
-    # fit/_torque_error.py). False: the angle noise alone (the latent torque knots stay).
+    # fit/_torque_error.py). False: the angle noise alone (the latent torque lines stay).
     torque_error_variance: bool = True
 
 
@@ -114,21 +115,27 @@ def cycle_amplitude_shape(torque_Nm) -> np.ndarray:
 
 
 @in_float64
-def model_inputs(campaign: Campaign, denoise_fraction: float | None = None, return_variance: bool = False):
+def model_inputs(campaign: Campaign, denoise_fraction: float | None = None, return_variance: bool = False,
+                 return_lines: bool = False):
     """Per-run model inputs; hysteresis runs are driven by the denoised measured torque. With
-    ``return_variance`` also the variance of that torque per sample (zeros for TE runs)."""
-    out, variances = [], []
+    ``return_variance`` also the variance of that torque per sample (zeros for TE runs); with
+    ``return_lines`` the variances and each hysteresis run's :class:`RampLines` (None for TE)."""
+    out, variances, lines = [], [], []
     for run in campaign.runs:
         if isinstance(run, HysteresisRun):
-            tau, var = denoise_torque(run.torque_Nm, denoise_fraction, return_variance=True)
+            tau, var, ramp_lines = denoise_torque(run.torque_Nm, denoise_fraction, return_lines=True)
             small = small_cycle_rows(run.time_s, run.torque_Nm, run.angle_rad, name=run.name)
             out.append(m.hysteresis_input(run.time_s, tau, campaign.temperature_delta_K(run), small))
             variances.append(var)
+            lines.append(ramp_lines)
         else:
             out.append(m.te_input(run.output_angle_rad, run.torque_Nm, run.speed_rpm, run.direction, run.time_s,
                                   zero_group=campaign.te_zero_index(run),
                                   temperature_delta_K=campaign.temperature_delta_K(run)))
             variances.append(np.zeros(len(run)))
+            lines.append(None)
+    if return_lines:
+        return out, variances, lines
     return (out, variances) if return_variance else out
 
 
@@ -219,7 +226,7 @@ class FitProblem(eqx.Module):
     # angle, rad² (errors in variables, read from the data; 0 for TE runs): constant in u
     eiv_var: list
     design: list
-    knot_basis: list  # per run: (N, K_r) hat functions of the latent torque correction
+    torque_line_basis: list  # per run: (N, 2·ramps) level and tilt columns of the latent torque correction
     floors: jnp.ndarray
     prior_mean: jnp.ndarray
     prior_sd: jnp.ndarray
@@ -246,13 +253,13 @@ class FitProblem(eqx.Module):
         return int(sum(p.size for p in self.physics))
 
     @property
-    def n_knots(self) -> int:
-        return int(sum(b.shape[1] for b in self.knot_basis))
+    def n_torque_lines(self) -> int:
+        return int(sum(b.shape[1] for b in self.torque_line_basis))
 
     @property
     def n_nonlinear(self) -> int:
-        """The non-linear block: model parameters and latent torque knots."""
-        return self.n_model + self.n_knots
+        """The non-linear block: model parameters and latent torque lines."""
+        return self.n_model + self.n_torque_lines
 
     @property
     def n_linear(self) -> int:
@@ -268,13 +275,13 @@ class FitProblem(eqx.Module):
 
     # --- parameter layout ------------------------------------------------------------------
     def names(self, run_names) -> list[str]:
-        """Names of the entries of u (model parameters, latent torque knots, then log s_r per
+        """Names of the entries of u (model parameters, latent torque lines, then log s_r per
         run and logit(ρ_r/ρ_max) per AR(1) run; all in the unconstrained space)."""
         out = []
         for p in self.physics:
             out += [p.name] if p.size == 1 else [f"{p.name}[{i}]" for i in range(p.size)]
-        for r, b in zip(run_names, self.knot_basis):
-            out += [f"torque_knot[{r}][{k}]" for k in range(b.shape[1])]
+        for r, b in zip(run_names, self.torque_line_basis):
+            out += [f"torque_line[{r}][{k // 2}].{'tilt' if k % 2 else 'level'}" for k in range(b.shape[1])]
         out += [f"noise[{r}]" for r in run_names]
         out += [f"ar1[{r}]" for r, a in zip(run_names, self.ar1) if a]
         return out
@@ -324,7 +331,7 @@ class FitProblem(eqx.Module):
     def corrected_inputs(self, u_nl):
         """Model inputs with the latent torque correction of u applied."""
         out, i = [], self.n_model
-        for inp, basis in zip(self.inputs, self.knot_basis):
+        for inp, basis in zip(self.inputs, self.torque_line_basis):
             k = basis.shape[1]
             if k:
                 inp = eqx.tree_at(lambda x: x.torque_Nm, inp, inp.torque_Nm + basis @ u_nl[i:i + k])
@@ -559,19 +566,6 @@ def _linear_jacobian(shell, u_phys, n_lin: int):
     return jax.jacfwd(lin_pred)(jnp.zeros(n_lin))
 
 
-def _knot_indices(torque_Nm) -> np.ndarray:
-    """Turning points of a torque series and its two ends (sample indices)."""
-    segments = fit_ramps(torque_Nm)
-    return np.unique([0, len(torque_Nm) - 1] + [s[0] for s in segments] + [s[1] for s in segments])
-
-
-def _hat_basis(n: int, knots: np.ndarray) -> np.ndarray:
-    """(n, K) piecewise-linear hat functions on sample indices, one per knot."""
-    idx = np.arange(n)
-    eye = np.eye(len(knots))
-    return np.stack([np.interp(idx, knots, eye[j]) for j in range(len(knots))], axis=1)
-
-
 def _likelihood_keep(campaign: Campaign, inputs, first_excursions: bool) -> list | None:
     """Per run: True on the samples in the likelihood — not the manifest's conditioning rows
     (``[runs.condition]``), nor, with ``first_excursions``, the first excursions of the largest
@@ -612,24 +606,26 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
     priors = build_priors(params, campaign, gap_from_crossings=gap_prior_from_crossings)
     prior_mean = np.concatenate([np.full(p.size, priors[p.name][0]) for p in physics])
     prior_sd = np.concatenate([np.full(p.size, priors[p.name][1]) for p in physics])
-    inputs, torque_var = model_inputs(campaign, noise.denoise_fraction, return_variance=True)
+    inputs, torque_var, ramp_lines = model_inputs(campaign, noise.denoise_fraction, return_lines=True)
     y = [jnp.asarray(v) for v in observed(campaign)]
     floor = campaign.instrument.angle_floor_rad or 0.0
     ar1 = tuple(bool(len(r) >= AR1_MIN_SAMPLES) if noise.ar1 is None else bool(noise.ar1) for r in campaign.runs)
     # noise above the floor: log-normal around 1 % of the run's angle range (wide)
     ranges = np.array([max(float(np.ptp(np.asarray(v))), 1e-9) for v in y])
     design = _design_matrices(model, inputs, physics, linear, prior_mean, y)
-    bases, knot_sd, eiv_var = [], [], []
-    for run, inp, var in zip(campaign.runs, inputs, torque_var):
+    bases, line_sd, eiv_var = [], [], []
+    for run, inp, var, lines in zip(campaign.runs, inputs, torque_var, ramp_lines):
         hysteresis = isinstance(run, HysteresisRun)
-        eiv_var.append(angle_variance_from_torque_error(run.angle_rad, run.torque_Nm, inp.torque_Nm, var)
-                       if hysteresis and noise.torque_error_variance else np.zeros(len(run)))
         if hysteresis and latent_torque:
-            knots = _knot_indices(run.torque_Nm)
-            bases.append(jnp.asarray(_hat_basis(len(run), knots)))
-            knot_sd.append(np.sqrt(np.maximum(var[knots], 1e-12)))
+            # each ramp's line of error is latent (correlated along the ramp); the per-sample
+            # variance keeps only what the lines leave
+            basis, sd, var = ramp_line_basis(lines, var)
+            bases.append(jnp.asarray(basis))
+            line_sd.append(np.maximum(sd, 1e-6))
         else:
             bases.append(jnp.asarray(np.zeros((len(run), 0))))
+        eiv_var.append(angle_variance_from_torque_error(run.angle_rad, run.torque_Nm, inp.torque_Nm, var)
+                       if hysteresis and noise.torque_error_variance else np.zeros(len(run)))
     shape = None
     if noise.cycle_amplitude_noise and noise.cycle_class_noise:
         raise ValueError("NoiseOptions: cycle_amplitude_noise and cycle_class_noise are two shapes of the same "
@@ -649,13 +645,13 @@ def build_problem(campaign: Campaign, model: m.CampaignModel, noise: NoiseOption
     if noise.cycle_amplitude_noise:
         shape = [jnp.asarray(cycle_amplitude_shape(run.torque_Nm) if isinstance(run, HysteresisRun)
                              else np.ones(len(run))) for run in campaign.runs]
-    if knot_sd:
-        prior_mean = np.concatenate([prior_mean, np.zeros(sum(len(k) for k in knot_sd))])
-        prior_sd = np.concatenate([prior_sd, *knot_sd])
+    if line_sd:
+        prior_mean = np.concatenate([prior_mean, np.zeros(sum(len(k) for k in line_sd))])
+        prior_sd = np.concatenate([prior_sd, *line_sd])
     return FitProblem(
         model=model, physics=physics, linear=linear, ar1=ar1, student_t_dof=noise.student_t_dof,
         inputs=inputs, y=y, eiv_var=[jnp.asarray(v) for v in eiv_var],
-        design=design, knot_basis=bases, floors=jnp.asarray(np.full(len(y), floor)),
+        design=design, torque_line_basis=bases, floors=jnp.asarray(np.full(len(y), floor)),
         prior_mean=jnp.asarray(prior_mean), prior_sd=jnp.asarray(prior_sd), noise_prior_mean=jnp.asarray(np.log(1e-2 * ranges)),
         noise_shape=shape, first_excursion_class=noise.first_excursion_class, likelihood_keep=keep,
     )

@@ -20,7 +20,43 @@ every model fitted to the file (so their likelihoods compare), and constant in t
 import numpy as np
 
 from .._segments import fit_ramps
-from ._denoise import gcv_half_width, local_linear
+from ._denoise import RampLines, gcv_half_width, local_linear
+
+
+def ramp_line_basis(lines: RampLines, torque_var_Nm2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The denoised torque's error split by correlation: per ramp a line (its level and its tilt
+    across the ramp's core, correlated over every sample read from that ramp) for the latent
+    torque correction, and the rest per sample.
+
+    A ramp's smoother averages its raw noise; the mean and the linear trend of the denoised
+    error along the ramp are those of a least-squares line through the core (variances
+    σ²/n and σ²/Σ(i − ī)², independent), whatever the window. With the widest window (a straight
+    ramp) that line *is* the whole error: every sample of the ramp moves with it. Counted sample
+    by sample instead, as an independent variance of each, one ramp's error reads as n
+    independent errors and the friction level's interval came out about 2.5× too narrow where
+    the encoder's steps were the only angle noise.
+
+    Returns (basis (n, 2K): per ramp its level column, 1, then its tilt column, (i − ī)/half the
+    core's span — both in N·m of correction; prior sd of each column, N·m; the per-sample
+    variance the lines leave, N·m², ≥ 0).
+    """
+    var = np.asarray(torque_var_Nm2, float)
+    n, k = var.size, lines.centre.size
+    basis = np.zeros((n, 2 * k))
+    sd = np.zeros(2 * k)
+    line_var = np.zeros(n)
+    rows = np.arange(n)
+    for j in range(k):
+        on = lines.ramp == j
+        half = max(0.5 * (lines.count[j] - 1.0), 1.0)
+        tilt = (rows[on] - lines.centre[j]) / half
+        level_var = lines.noise_var_Nm2[j] / max(lines.count[j], 1.0)
+        tilt_var = lines.noise_var_Nm2[j] / max(lines.sxx[j], 1e-300) * half**2 if lines.sxx[j] > 0 else 0.0
+        basis[on, 2 * j] = 1.0
+        basis[on, 2 * j + 1] = tilt
+        sd[2 * j], sd[2 * j + 1] = np.sqrt(level_var), np.sqrt(tilt_var)
+        line_var[on] = level_var + tilt**2 * tilt_var
+    return basis, sd, np.maximum(var - line_var, 0.0)
 
 
 def angle_variance_from_torque_error(angle_rad, torque_Nm, denoised_Nm, torque_var_Nm2) -> np.ndarray:

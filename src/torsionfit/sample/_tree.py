@@ -24,8 +24,8 @@ Groups:
   drawn from their exact conditional posterior N(β̂(u), A⁻¹) (``linear="sample"``, the
   default: joint posterior draws), or set to β̂(u) = ``problem.full_values(u)``
   (``linear="profile"``). Also ``noise_sigma`` (innovation sd per run, rad, dim ``run``),
-  ``ar1_rho`` (per AR(1) run, dim ``ar1_run``) and ``torque_knot_correction`` (latent
-  drive-torque correction at the knots, N·m, dim ``torque_knot``); and, when given, the
+  ``ar1_rho`` (per AR(1) run, dim ``ar1_run``) and ``torque_line_correction`` (latent
+  drive-torque correction per ramp, its level and its tilt, N·m, dim ``torque_line``); and, when given, the
   catalog metrics of ``fit.json`` per draw in their display units (``stiffness_elastic``
   N·m/arcmin, ``lost_motion`` arcmin, …; ``kd_mean``/``kt`` with dim ``te_run``). A metric
   that is a model parameter already (``friction_torque``) is not stored twice. Every variable
@@ -391,15 +391,15 @@ def to_datatree(problem, sample_result: SampleResult, run_names, *, draws=None, 
         dims["ar1_rho"] = ["ar1_run"]
         coords["ar1_run"] = ar1_runs
         var_attrs["ar1_rho"] = dict(units="1", role="noise", description="AR(1) coefficient of the residual")
-    if problem.n_knots:
-        post["torque_knot_correction"] = chain[:, draws, problem.n_model:problem.n_nonlinear]
-        dims["torque_knot_correction"] = ["torque_knot"]
-        coords["torque_knot"] = [f"{r}[{k}]" for r, b in zip(run_names, problem.knot_basis)
-                                 for k in range(b.shape[1])]
-        var_attrs["torque_knot_correction"] = dict(
+    if problem.n_torque_lines:
+        post["torque_line_correction"] = chain[:, draws, problem.n_model:problem.n_nonlinear]
+        dims["torque_line_correction"] = ["torque_line"]
+        coords["torque_line"] = [f"{r}[{k // 2}].{'tilt' if k % 2 else 'level'}"
+                                 for r, b in zip(run_names, problem.torque_line_basis) for k in range(b.shape[1])]
+        var_attrs["torque_line_correction"] = dict(
             units="N·m", role="latent",
-            description="latent correction to the denoised drive torque at the knots "
-                        "(turning points and ends of each hysteresis run), linear in between")
+            description="latent correction to the denoised drive torque, per ramp of each hysteresis run: "
+                        "its level, and its tilt (the correction at the ramp's ends relative to its middle)")
     left_out = [] if metric_draws is None else _add_metrics(post, dims, coords, var_attrs, metric_specs,
                                                            metric_draws, te_runs)
 
