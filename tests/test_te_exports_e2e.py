@@ -176,7 +176,7 @@ def test_declared_export_fit_recovers_the_stiffness(export, declared_fit):
     truth and inside the 95 % HDI, the MAP converged; each test's zero comes back; K_d of the
     model (against the no-load reference) is the truth's in both directions; fit.json names
     the runs' temperatures (25 and 40 °C, fitted together: no temperature term)."""
-    from torsionfit.report import fit_json
+    from torsionfit.report import fit_json, summary_table
 
     _, sim, manifest = export
     campaign = load_campaign(manifest)
@@ -195,6 +195,8 @@ def test_declared_export_fit_recovers_the_stiffness(export, declared_fit):
     prior = doc["diagnostics"]["prior_dominated"]
     assert "dahl_torque" in prior and "stiffness" not in prior, prior
     assert "dahl_torque" in doc["diagnostics"]["prior_dominated_note"]
+    shown = summary_table(doc)  # the screen says it beside the line that says the MAP converged
+    assert "sampler laplace: MAP converged" in shown and "\nprior: " in shown and "dahl_torque" in shown
     offsets = np.asarray(fit.map_result.values["te_offset"]) / ARCMIN
     np.testing.assert_allclose(offsets - offsets[0], np.asarray(SHIFTS_ARCMIN) - SHIFTS_ARCMIN[0], atol=0.05)
     for way in ("fw", "bw"):  # the truth's K_d against no load (the gap's pre-load makes it ≠ K)

@@ -980,7 +980,9 @@ def summary_table(doc: dict) -> str:
         lo, hi = e["hdi95"]
         lines.append(f"{name:34s} {e['mean']:11.5g} {e['sd']:9.3g}   [{lo:10.5g}, {hi:10.5g}]  {e['unit']}")
     d = doc["diagnostics"]
-    conv = "converged" if d["converged"] else f"NOT CONVERGED ({d.get('reason', '')})"
+    # Laplace draws around the MAP: its "converged" is the optimiser's, not a sampler's
+    conv = ("MAP converged" if d["sampler"] == "laplace" else "converged") if d["converged"] \
+        else f"NOT CONVERGED ({d.get('reason', '')})"
     rhat = "n/a" if d.get("rhat_max") is None else f"{d['rhat_max']:.3f}"
     ess = "n/a" if d.get("ess_min") is None else f"{d['ess_min']:.0f}"
     extra = f", {d['n_divergent']} divergent" if "n_divergent" in d else ""
@@ -993,6 +995,8 @@ def summary_table(doc: dict) -> str:
         # the RMSE below counts them; the likelihood does not
         shown = ", ".join(f"{k} {v}" for k, v in d["conditioning_samples"].items())
         lines.append(f"conditioning (out of the likelihood, in the RMSE): {shown} samples")
+    if d.get("prior_dominated_note"):
+        lines.append(f"prior: {d['prior_dominated_note']}")
     if d.get("laplace_note"):
         lines.append(f"laplace: {d['laplace_note']}")
     if d.get("laplace_pareto_k_note"):
