@@ -206,8 +206,8 @@ def test_ninety_percent_intervals_are_calibrated():
     stiffness and gap most: the pooled coverage of 100 campaigns spreads by ≈ 1.5 %, measured
     by resampling 300 campaigns, so the band is about ±3 sd). A loose per-parameter floor
     (75 %, 5 sd below 90 % for 100 campaigns) catches one badly calibrated parameter that the
-    pool would hide. Known and reported: friction alone covers ≈ 85 % (its Laplace sd is
-    ≈ 20 % too small when torque noise reaches the angle), gap_torque ≈ 96 %."""
+    pool would hide. Measured: pooled 91.2 %, friction 94 % (≈ 85 % while the drive torque's
+    error was counted sample by sample instead of as a latent line per ramp), gap_torque 88 %."""
     bench = load_bench(WHITE)
     rng = np.random.default_rng(TRUTH_RNG_SEED)
     hits, converged = [], 0
