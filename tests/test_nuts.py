@@ -483,6 +483,7 @@ def test_nuts_recovers_the_truth_on_bench_campaigns():
             lo, hi = _hdi(np.ravel(np.asarray(values[name])))
             inside[name] += bool(lo <= float(np.ravel(sim.truth[name])[0]) <= hi)
     identified = sum(n for name, n in inside.items() if name != "dahl_torque")
+    print(f"\n[nuts recovery] inside the 95 % HDI (of {len(RECOVERY_SEEDS)}): {inside}")
     assert inside["stiffness"] >= 9 and identified >= 35 and inside["dahl_torque"] >= 5, inside
 
 
