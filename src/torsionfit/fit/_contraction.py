@@ -21,7 +21,7 @@ _NUISANCE_SUFFIX = "_start"
 
 def prior_dominated(problem, draws_u) -> dict[str, float]:
     """Model parameter (name, element-wise) → posterior sd over prior sd, in the unconstrained
-    space, for those at or above :data:`PRIOR_DOMINATED_SD_RATIO` (the latent torque's knots,
+    space, for those at or above :data:`PRIOR_DOMINATED_SD_RATIO` (the latent torque lines,
     which carry their own smoothing prior, are left out)."""
     draws = np.asarray(draws_u, float)
     if draws.ndim != 2 or draws.shape[0] < 2:

@@ -27,6 +27,7 @@ from ..fit._prior import cycle_friction_readings_Nm
 from ..fit._noise_classes import _residuals, class_shares, refit_with_class_noise
 from ..fit._misfit import MISFIT_RHO, misfit_correlated_runs, widen_for_misfit
 from ..fit._contraction import prior_dominated, prior_dominated_note
+from ..fit._quantisation import quantisation_note, runs_below_the_encoder_step
 from ..io import Campaign, decimate
 from ..model import RelayGapBacklash, SteppedBacklash, model_with_effects
 from ..units import ANGLE_UNITS
@@ -791,6 +792,12 @@ def finish_fit(campaign: Campaign, options: FitOptions, model, problem, map_resu
         diagnostics["conditioning_samples"] = {n: int(np.sum(~k)) for n, k in zip(names, problem.kept_samples())}
     if near_bound:
         diagnostics["noise_note"] = noise_note(near_bound)
+    # rounding that is most of the angle's error repeats with the loop (fit/_quantisation.py)
+    below = runs_below_the_encoder_step(problem, map_result.u, names)
+    if below:
+        diagnostics["quantisation_runs"] = below
+        diagnostics["quantisation_note"] = quantisation_note(below)
+        warnings.warn(diagnostics["quantisation_note"])
     # a parameter the runs do not see keeps its prior's width: its value is the prior's
     diagnostics["prior_dominated"] = prior_dominated(problem, draws_u)
     note = prior_dominated_note(diagnostics["prior_dominated"], problem)
@@ -991,6 +998,8 @@ def summary_table(doc: dict) -> str:
         lines.append(f"sampler choice: {d['sampler_choice_reason']}")
     if d.get("noise_note"):
         lines.append(f"noise: {d['noise_note']}")
+    if d.get("quantisation_note"):
+        lines.append(f"noise: {d['quantisation_note']}")
     if d.get("conditioning_samples"):
         # the RMSE below counts them; the likelihood does not
         shown = ", ".join(f"{k} {v}" for k, v in d["conditioning_samples"].items())
