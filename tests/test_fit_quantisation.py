@@ -24,9 +24,10 @@ def _problem(angle_sd_arcsec: float):
     return campaign, build_problem(campaign, model, NoiseOptions())
 
 
-def _u(problem, noise_arcsec: float):
+def _u(problem, noise_arcsec: float, ar1_logit: float = -30.0):
+    """At the priors' centre, innovation sd ``noise_arcsec`` above the floor, ρ from its logit."""
     return np.concatenate([np.asarray(problem.prior_mean), np.full(problem.n_runs, np.log(noise_arcsec * ARCSEC)),
-                           np.zeros(problem.n_ar1)])
+                           np.full(problem.n_ar1, ar1_logit)])
 
 
 def test_a_hysteresis_run_whose_noise_is_under_the_floor_is_named_and_te_runs_are_not():
@@ -38,6 +39,10 @@ def test_a_hysteresis_run_whose_noise_is_under_the_floor_is_named_and_te_runs_ar
     assert abs(below["hyst-20"]["floor_arcsec"] - floor) < 1e-9
     assert abs(below["hyst-20"]["noise_arcsec"] - 0.1) < 1e-9
     assert runs_below_the_encoder_step(problem, _u(problem, 1.0), names) == {}
+    # AR(1) noise: its marginal sd is compared, s/√(1 − ρ²) — a small innovation of a noise that
+    # wanders far is no rounding
+    assert problem.ar1[0]
+    assert runs_below_the_encoder_step(problem, _u(problem, 0.1, ar1_logit=8.0), names) == {}
 
 
 def test_a_fit_of_a_loop_whose_only_angle_noise_is_the_rounding_says_so():

@@ -16,10 +16,13 @@ ARCSEC_PER_RAD = 180.0 * 3600.0 / np.pi
 
 
 def runs_below_the_encoder_step(problem, u, run_names) -> dict[str, dict[str, float]]:
-    """Hysteresis runs (by name) whose fitted noise above the floor, s_r at ``u``, is below the
-    encoder's quantisation sd (the floor, step/√12): run → {"noise_arcsec", "floor_arcsec"}."""
+    """Hysteresis runs (by name) whose fitted noise above the floor at ``u`` (its marginal sd:
+    s_r/√(1 − ρ_r²) with AR(1) noise) is below the encoder's quantisation sd (the floor,
+    step/√12): run → {"noise_arcsec", "floor_arcsec"}."""
     floors = np.asarray(problem.floors, float)
-    s = np.exp(np.asarray(u, float)[problem.n_nonlinear:problem.n_nonlinear + problem.n_runs])
+    u = np.asarray(u, float)
+    _, rho = problem.noise_values(u)
+    s = np.exp(u[problem.n_nonlinear:problem.n_nonlinear + problem.n_runs]) / np.sqrt(1.0 - np.asarray(rho, float) ** 2)
     out = {}
     for r, name in enumerate(run_names):
         if problem.model.run_kinds[r] == "hysteresis" and floors[r] > 0 and s[r] < floors[r]:
