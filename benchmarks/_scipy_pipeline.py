@@ -44,7 +44,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from torsionfit.fit._denoise import denoise_torque
-from torsionfit.fit._torque_error import angle_variance_from_torque_error, ramp_line_basis
+from torsionfit.fit._torque_error import angle_variance_from_torque_error, ramp_line_basis, torque_line_labels
 from torsionfit.fit._map import same_optimum
 from torsionfit.fit._prior import build_priors
 from torsionfit.fit._problem import AR1_MIN_SAMPLES, NOISE_PRIOR_SD, RHO_MAX, RHO_PRIOR_SD
@@ -160,8 +160,7 @@ class NumpyProblem:
 
     def names(self) -> list[str]:
         out = [p.name for p in PHYSICS] + ["friction_start"]
-        out += [f"torque_line[{self.run_name}][{k // 2}].{'tilt' if k % 2 else 'level'}"
-                for k in range(self.n_torque_lines)]
+        out += [f"torque_line[{self.run_name}]{label}" for label in torque_line_labels(self.n_torque_lines)]
         out += [f"noise[{self.run_name}]"] + ([f"ar1[{self.run_name}]"] if self.ar1 else [])
         return out
 

@@ -87,9 +87,8 @@ class RampLines(NamedTuple):
     over the ramp's core), correlated along the whole ramp, not sample by sample."""
 
     ramp: np.ndarray  # (n,) index of the ramp whose smoother (or end line) gives the sample
-    centre: np.ndarray  # (K,) mean sample index of each ramp's core
-    count: np.ndarray  # (K,) samples in each ramp's core
-    sxx: np.ndarray  # (K,) Σ(i − centre)² over the core
+    core_first: np.ndarray  # (K,) first sample of each ramp's core (its smoothed samples)
+    core_last: np.ndarray  # (K,) last sample of each ramp's core
     noise_var_Nm2: np.ndarray  # (K,) the raw torque noise variance of each ramp, N·m²
 
 
@@ -108,7 +107,7 @@ def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_vari
     tau = np.asarray(torque_Nm, float)
     n = tau.size
     if n < 7:
-        lines = RampLines(np.zeros(n, int), *(np.zeros(0) for _ in range(4)))
+        lines = RampLines(np.zeros(n, int), np.zeros(0, int), np.zeros(0, int), np.zeros(0))
         return _returned(tau.copy(), np.zeros(n), lines, return_variance, return_lines)
     segments = fit_ramps(tau)
     out = tau.copy()
@@ -144,9 +143,7 @@ def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_vari
         out[i] = np.where(use_left, left, right)
         var[i] = np.where(use_left, _line_variance(i, ia_idx, var_a), _line_variance(i, ib_idx, var_b))
         ramp[i] = np.where(use_left, k, k + 1)
-    cores = [np.arange(e[0], e[1] + 1) for e in ends]
-    lines = RampLines(ramp, np.array([c.mean() for c in cores]), np.array([c.size for c in cores], float),
-                      np.array([np.sum((c - c.mean()) ** 2) for c in cores]), np.array([e[5] for e in ends]))
+    lines = RampLines(ramp, np.array([e[0] for e in ends]), np.array([e[1] for e in ends]), np.array([e[5] for e in ends]))
     return _returned(out, var, lines, return_variance, return_lines)
 
 

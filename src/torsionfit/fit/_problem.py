@@ -41,7 +41,7 @@ from ..metrics._hysteresis import small_cycle_rows
 from ._denoise import denoise_torque
 from ._noise_classes import conditioning_keep, ramp_amplitudes
 from ._prior import build_priors
-from ._torque_error import angle_variance_from_torque_error, ramp_line_basis
+from ._torque_error import angle_variance_from_torque_error, ramp_line_basis, torque_line_labels
 
 AR1_MIN_SAMPLES = 100  # the AR(1) default is on for runs at least this dense
 RHO_PRIOR_SD = 1.5  # logit-normal(0, 1.5) prior on each ρ_r / ρ_max
@@ -115,11 +115,10 @@ def cycle_amplitude_shape(torque_Nm) -> np.ndarray:
 
 
 @in_float64
-def model_inputs(campaign: Campaign, denoise_fraction: float | None = None, return_variance: bool = False,
-                 return_lines: bool = False):
+def model_inputs(campaign: Campaign, denoise_fraction: float | None = None, return_lines: bool = False):
     """Per-run model inputs; hysteresis runs are driven by the denoised measured torque. With
-    ``return_variance`` also the variance of that torque per sample (zeros for TE runs); with
-    ``return_lines`` the variances and each hysteresis run's :class:`RampLines` (None for TE)."""
+    ``return_lines`` also the variance of that torque per sample (zeros for TE runs) and each
+    hysteresis run's :class:`RampLines` (None for TE)."""
     out, variances, lines = [], [], []
     for run in campaign.runs:
         if isinstance(run, HysteresisRun):
@@ -134,9 +133,7 @@ def model_inputs(campaign: Campaign, denoise_fraction: float | None = None, retu
                                   temperature_delta_K=campaign.temperature_delta_K(run)))
             variances.append(np.zeros(len(run)))
             lines.append(None)
-    if return_lines:
-        return out, variances, lines
-    return (out, variances) if return_variance else out
+    return (out, variances, lines) if return_lines else out
 
 
 def observed(campaign: Campaign) -> list[np.ndarray]:
@@ -281,7 +278,7 @@ class FitProblem(eqx.Module):
         for p in self.physics:
             out += [p.name] if p.size == 1 else [f"{p.name}[{i}]" for i in range(p.size)]
         for r, b in zip(run_names, self.torque_line_basis):
-            out += [f"torque_line[{r}][{k // 2}].{'tilt' if k % 2 else 'level'}" for k in range(b.shape[1])]
+            out += [f"torque_line[{r}]{label}" for label in torque_line_labels(b.shape[1])]
         out += [f"noise[{r}]" for r in run_names]
         out += [f"ar1[{r}]" for r, a in zip(run_names, self.ar1) if a]
         return out

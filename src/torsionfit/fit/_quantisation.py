@@ -12,7 +12,9 @@ came out 2.5 % high in every one of 20 campaigns at an sd of 1 % (tests/test_fit
 
 import numpy as np
 
-ARCSEC_PER_RAD = 180.0 * 3600.0 / np.pi
+from ..units import ANGLE_UNITS
+
+ARCSEC_PER_RAD = 1.0 / ANGLE_UNITS["arcsec"]
 
 
 def runs_below_the_encoder_step(problem, u, run_names) -> dict[str, dict[str, float]]:

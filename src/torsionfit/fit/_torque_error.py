@@ -41,22 +41,29 @@ def ramp_line_basis(lines: RampLines, torque_var_Nm2) -> tuple[np.ndarray, np.nd
     variance the lines leave, N·m², ≥ 0).
     """
     var = np.asarray(torque_var_Nm2, float)
-    n, k = var.size, lines.centre.size
+    n, k = var.size, lines.core_first.size
     basis = np.zeros((n, 2 * k))
     sd = np.zeros(2 * k)
     line_var = np.zeros(n)
     rows = np.arange(n)
     for j in range(k):
         on = lines.ramp == j
-        half = max(0.5 * (lines.count[j] - 1.0), 1.0)
-        tilt = (rows[on] - lines.centre[j]) / half
-        level_var = lines.noise_var_Nm2[j] / max(lines.count[j], 1.0)
-        tilt_var = lines.noise_var_Nm2[j] / max(lines.sxx[j], 1e-300) * half**2 if lines.sxx[j] > 0 else 0.0
+        count = float(lines.core_last[j] - lines.core_first[j] + 1)
+        half = max(0.5 * (count - 1.0), 1.0)
+        tilt = (rows[on] - 0.5 * (lines.core_first[j] + lines.core_last[j])) / half
+        level_var = lines.noise_var_Nm2[j] / count
+        sxx = count * (count**2 - 1.0) / 12.0  # Σ(i − ī)² over consecutive samples
+        tilt_var = lines.noise_var_Nm2[j] / sxx * half**2 if sxx > 0 else 0.0
         basis[on, 2 * j] = 1.0
         basis[on, 2 * j + 1] = tilt
         sd[2 * j], sd[2 * j + 1] = np.sqrt(level_var), np.sqrt(tilt_var)
         line_var[on] = level_var + tilt**2 * tilt_var
     return basis, sd, np.maximum(var - line_var, 0.0)
+
+
+def torque_line_labels(n_columns: int) -> list[str]:
+    """Labels of :func:`ramp_line_basis`' columns: ``[k].level``, ``[k].tilt`` per ramp k."""
+    return [f"[{k // 2}].{'tilt' if k % 2 else 'level'}" for k in range(n_columns)]
 
 
 def angle_variance_from_torque_error(angle_rad, torque_Nm, denoised_Nm, torque_var_Nm2) -> np.ndarray:

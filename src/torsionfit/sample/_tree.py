@@ -75,6 +75,7 @@ import xarray as xr
 
 from .._x64 import in_float64
 from ..fit._problem import student_t_weights
+from ..fit._torque_error import torque_line_labels
 from ._emcee import SampleResult
 
 __all__ = ["MAX_POINTWISE_VALUES", "convergence_summary", "draw_thinning", "load_tree", "pointwise_draw_limit",
@@ -394,8 +395,8 @@ def to_datatree(problem, sample_result: SampleResult, run_names, *, draws=None, 
     if problem.n_torque_lines:
         post["torque_line_correction"] = chain[:, draws, problem.n_model:problem.n_nonlinear]
         dims["torque_line_correction"] = ["torque_line"]
-        coords["torque_line"] = [f"{r}[{k // 2}].{'tilt' if k % 2 else 'level'}"
-                                 for r, b in zip(run_names, problem.torque_line_basis) for k in range(b.shape[1])]
+        coords["torque_line"] = [f"{r}{label}" for r, b in zip(run_names, problem.torque_line_basis)
+                                 for label in torque_line_labels(b.shape[1])]
         var_attrs["torque_line_correction"] = dict(
             units="N·m", role="latent",
             description="latent correction to the denoised drive torque, per ramp of each hysteresis run: "
