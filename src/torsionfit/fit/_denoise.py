@@ -92,11 +92,10 @@ class RampLines(NamedTuple):
     noise_var_Nm2: np.ndarray  # (K,) the raw torque noise variance of each ramp, N·m²
 
 
-def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_variance: bool = False,
-                   return_lines: bool = False):
-    """Torque smoothed within each monotone segment, N·m (and, with ``return_variance``, the
-    variance of each smoothed sample, N·m², from the ramp's noise and the smoother's leverage;
-    with ``return_lines`` also the :class:`RampLines` each sample is read from).
+def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_lines: bool = False):
+    """Torque smoothed within each monotone segment, N·m (and, with ``return_lines``, the
+    variance of each smoothed sample, N·m², from the ramp's noise and the smoother's leverage,
+    and the :class:`RampLines` each sample is read from).
 
     Each ramp, less ``TRIM`` samples next to each turning point, is smoothed by a local-linear
     fit whose half-width is chosen by generalised cross-validation (or fixed at
@@ -108,7 +107,7 @@ def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_vari
     n = tau.size
     if n < 7:
         lines = RampLines(np.zeros(n, int), np.zeros(0, int), np.zeros(0, int), np.zeros(0))
-        return _returned(tau.copy(), np.zeros(n), lines, return_variance, return_lines)
+        return (tau.copy(), np.zeros(n), lines) if return_lines else tau.copy()
     segments = fit_ramps(tau)
     out = tau.copy()
     var = np.zeros(n)
@@ -144,13 +143,7 @@ def denoise_torque(torque_Nm, segment_fraction: float | None = None, return_vari
         var[i] = np.where(use_left, _line_variance(i, ia_idx, var_a), _line_variance(i, ib_idx, var_b))
         ramp[i] = np.where(use_left, k, k + 1)
     lines = RampLines(ramp, np.array([e[0] for e in ends]), np.array([e[1] for e in ends]), np.array([e[5] for e in ends]))
-    return _returned(out, var, lines, return_variance, return_lines)
-
-
-def _returned(out, var, lines, return_variance, return_lines):
-    if return_lines:
-        return out, var, lines
-    return (out, var) if return_variance else out
+    return (out, var, lines) if return_lines else out
 
 
 def _line_variance(i, idx, noise_var):
